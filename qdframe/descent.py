@@ -1,0 +1,187 @@
+"""The δ-quasidifferential descent loop (paper Section 6) and `qdframe.solve`."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .directions.base import DirectionSolver
+from .errors import BackendError, InputError, ModelOutputError
+from .functional import Functional
+from .grid import Grid
+from .line_searches.base import LineSearch
+from .model import InclusionModel
+from .registry import lookup
+from .result import IterationRecord, SolveResult
+
+ProgressCallback = Callable[[IterationRecord], None]
+
+
+@dataclass(frozen=True)
+class DescentOptions:
+    """The method's parameters; the paper's defaults δ = 1e-3, ε = 1e-2, γ̄ = 1 (Section 7)."""
+
+    max_iter: int = 500
+    tol: float = 1e-3
+    delta: float = 1e-3
+    eps: float = 1e-2
+    gamma_max: float = 1.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
+            raise InputError("max_iter", "an integer ≥ 0", self.max_iter)
+        for field_name in ("tol", "delta", "eps", "gamma_max"):
+            value = getattr(self, field_name)
+            if not isinstance(value, (int, float, np.floating)) or not np.isfinite(value) or value <= 0:
+                raise InputError(field_name, "a positive finite number", value)
+
+
+def load_model(name: str, **overrides) -> InclusionModel:
+    """A registered model by name; `overrides` are T, x0, end_values."""
+    return lookup("models", name).obj(**overrides)
+
+
+def make_direction(direction: str | DirectionSolver) -> DirectionSolver:
+    if isinstance(direction, DirectionSolver):
+        return direction
+    entry = lookup("directions", str(direction))
+    return entry.obj.from_name(direction) if hasattr(entry.obj, "from_name") else entry.obj()
+
+
+def make_line_search(line_search: str | LineSearch) -> LineSearch:
+    if isinstance(line_search, LineSearch):
+        return line_search
+    return lookup("line_searches", str(line_search)).obj()
+
+
+def solve(
+    model: str | InclusionModel,
+    nodes: int = 101,
+    direction: str | DirectionSolver = "native",
+    line_search: str | LineSearch = "golden",
+    *,
+    max_iter: int = 500,
+    tol: float | None = None,
+    delta: float = 1e-3,
+    eps: float = 1e-2,
+    gamma_max: float = 1.0,
+    progress: ProgressCallback | None = None,
+) -> SolveResult:
+    """Find a trajectory of `model` by δ-quasidifferential descent.
+
+    Stops `solved` when the objective and I are ≤ tol (the model's default tol if
+    None), `stationary` when every node's deviation is ≤ ε or no step decreases the
+    objective, `max_iter` when the budget is spent, `failed` when a backend or the
+    model reports an error mid-run (the message says which).
+    """
+    if isinstance(model, str):
+        model = load_model(model)
+    options = DescentOptions(
+        max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max
+    )
+    solver = make_direction(direction)
+    search = make_line_search(line_search)
+    functional = Functional(model, Grid(model.T, nodes))
+    return descend(functional, solver, search, options, progress)
+
+
+def descend(
+    functional: Functional,
+    solver: DirectionSolver,
+    search: LineSearch,
+    options: DescentOptions,
+    progress: ProgressCallback | None = None,
+    start: np.ndarray | None = None,
+) -> SolveResult:
+    """Run the descent from `start` (default: the model's initial guess)."""
+    clock = time.perf_counter()
+    xi = functional.initial_point() if start is None else np.array(start, dtype=float)
+    terms = functional.terms(xi)
+    history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), 0.0)]
+    status, message = "max_iter", f"{options.max_iter} iterations spent"
+    weights = functional.weights
+    try:
+        for iteration in range(1, options.max_iter + 2):
+            if terms.objective <= options.tol and terms.I <= options.tol:
+                status, message = "solved", ""
+                break
+            if iteration > options.max_iter:
+                break
+            direction = solver.compute(functional, xi, options.delta)
+            deviation = float(np.max(direction.deviation))
+            if deviation <= options.eps:
+                status, message = "stationary", f"deviation {deviation:.2e} ≤ ε at every node"
+                break
+            step = direction.step
+
+            def along(gamma: float) -> float:
+                return functional.objective(xi + gamma * step)
+
+            gamma, value = search.search(along, terms.objective, direction.slope, options.gamma_max)
+            if not (gamma > 0 and value < terms.objective):
+                status, message = "stationary", "no step along the direction decreases the objective"
+                break
+            xi = xi + gamma * step
+            terms = functional.terms(xi)
+            record = IterationRecord(
+                iteration,
+                terms.objective,
+                terms.I,
+                gamma,
+                float(np.sqrt(weights @ np.sum(step**2, axis=1))),
+                deviation,
+                time.perf_counter() - clock,
+            )
+            history.append(record)
+            if progress is not None:
+                progress(record)
+    except (BackendError, ModelOutputError) as exc:
+        status, message = "failed", str(exc)
+    return _result(functional, solver, search, options, xi, status, message, history, time.perf_counter() - clock)
+
+
+def _result(functional, solver, search, options, xi, status, message, history, elapsed) -> SolveResult:
+    model = functional.model
+    terms = functional.terms(xi)
+    residuals = functional.residuals(xi)
+    x, z = functional.split(xi)
+    exact = model.exact_solution(functional.grid.t)
+    solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
+    bounds = [None if b is None else {"lower": b[0], "upper": b[1]} for b in functional.set_bounds(xi)]
+    return SolveResult(
+        model=model.name,
+        direction=getattr(solver, "label", solver.name),
+        line_search=search.name,
+        nodes=functional.grid.nodes,
+        T=model.T,
+        status=status,
+        message=message,
+        iterations=len(history) - 1,
+        wall_time_s=elapsed,
+        objective=terms.objective,
+        I=terms.I,
+        terms={"phi": terms.phi, "chi": terms.chi, "omega": terms.omega, "upsilon": terms.upsilon},
+        cost=terms.cost if functional.cost is not None else None,
+        boundary_error=residuals.boundary_error,
+        inclusion_residual=residuals.inclusion_residual,
+        surface_error=residuals.surface_error,
+        consistency_error=residuals.consistency_error,
+        solution_error=solution_error,
+        t=functional.grid.t,
+        x=x,
+        z=z,
+        u=None,
+        state_names=tuple(model.state_names),
+        set_bounds=bounds,
+        options={
+            "max_iter": options.max_iter,
+            "tol": options.tol,
+            "delta": options.delta,
+            "eps": options.eps,
+            "gamma_max": options.gamma_max,
+        },
+        history=list(history),
+    )

@@ -1,0 +1,90 @@
+"""The DirectionSolver interface and the min-norm mechanism the QP backends share.
+
+A direction solver turns the iterate ξ into a descent direction G (nodes × d). The
+paper's direction (problems (19), (eq), (maxmin)) is, node by node,
+
+    max over vertices w of B_k  of  min over v ∈ A_k  of ‖v + w‖²,   G_k = −(v̄ + w̄),
+
+and each inner problem is a minimum-norm point of a sum of simplices. Backends that
+follow the paper subclass :class:`MinNormDirection` and implement only
+:meth:`MinNormDirection.min_norm` for a whole batch at once.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from ..quasidifferential import Quasidifferential
+
+if TYPE_CHECKING:
+    from ..functional import Functional
+
+
+@dataclass(frozen=True)
+class Direction:
+    """A descent direction and its quality figures.
+
+    step: G, shape (N, d). deviation: per-node ‖v̄ + w̄‖, the Hausdorff deviation of
+    −B_k from A_k (0 where the minimum condition (11.400) holds). slope: the
+    directional derivative of the objective along G (formula (11.10)), negative
+    for a descent direction.
+    """
+
+    step: np.ndarray
+    deviation: np.ndarray
+    slope: float
+
+
+class DirectionSolver(ABC):
+    """Computes a descent direction of the discretized objective at ξ."""
+
+    name: ClassVar[str] = ""
+
+    @abstractmethod
+    def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
+        """Direction at ξ with δ-active pieces (paper Section 6)."""
+
+
+class MinNormDirection(DirectionSolver):
+    """The paper's direction; subclasses supply the batched min-norm QP solver."""
+
+    @abstractmethod
+    def min_norm(
+        self, center: np.ndarray, generators: np.ndarray, mask: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Minimum-norm points of a batch of simplex sums.
+
+        Solves, for every row b, min ‖center_b + Σ_g Σ_p λ_bgp generators_bgp‖ with
+        λ_bg in the unit simplex over the entries where mask_bg is True.
+        center: (B, d); generators: (B, G, m, d); mask: (B, G, m), each group with
+        at least one True. Returns the points (B, d) and the weights λ (B, G, m).
+        """
+
+    def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
+        return self.from_quasidifferential(functional.quasidifferential(xi, delta), functional.weights)
+
+    def from_quasidifferential(self, qd: Quasidifferential, weights: np.ndarray) -> Direction:
+        """Solve (maxmin) at every node: one batched min-norm call over nodes × vertices."""
+        vertices, valid = qd.sup.vertices()  # w ∈ B_k: (N, V, d)
+        nodes, count, dim = vertices.shape
+        sub = qd.sub
+        groups, width = sub.generators.shape[1:3]
+        center = (sub.center[:, None, :] + vertices).reshape(nodes * count, dim)
+        generators = np.broadcast_to(
+            sub.generators[:, None], (nodes, count, groups, width, dim)
+        ).reshape(nodes * count, groups, width, dim)
+        mask = np.broadcast_to(sub.mask[:, None], (nodes, count, groups, width)).reshape(
+            nodes * count, groups, width
+        )
+        points, _ = self.min_norm(center, generators, mask)
+        distance = np.linalg.norm(points, axis=1).reshape(nodes, count)
+        distance = np.where(valid, distance, -np.inf)
+        worst = np.argmax(distance, axis=1)  # the worst vertex of −B_k
+        rows = np.arange(nodes)
+        step = -points.reshape(nodes, count, dim)[rows, worst]
+        deviation = distance[rows, worst]
+        return Direction(step=step, deviation=deviation, slope=qd.directional_derivative(step, weights))

@@ -1,0 +1,383 @@
+"""Exact, batched minimum-norm points of sums of simplices (Wolfe's problem).
+
+For every batch row b the function :func:`min_norm_point` solves
+
+    minimize   ‖ c_b + Σ_g Σ_p λ_bgp · a_bgp ‖²
+    subject to λ_bg in the unit simplex over the active entries (mask_bgp True),
+
+i.e. it finds the Euclidean distance from the origin to the convex polyhedron
+c_b + Σ_g co{a_bgp} ("finding the Euclidean distance from a point to a convex
+polyhedron", Wolfe 1976). The minimum-norm *point* y_b is unique; the weights λ
+need not be.
+
+Method (active-set enumeration, vectorized over the batch)
+-----------------------------------------------------------
+1. Every row is divided by its largest absolute entry, so all tolerances below
+   are relative and the result is scale invariant; the point is computed at the
+   end from the returned weights and the original data.
+2. A group with exactly one active entry in every row is folded into the center
+   (its weight is 1 there).
+3. For the remaining groups a *support pattern* picks one nonempty subset S_g of
+   the (anywhere) active entries per group. On a pattern the problem restricted to
+   the affine hull is an unconstrained least-squares problem: with a base entry
+   s_g ∈ S_g,
+
+       y = y0 + D μ,   y0 = c + Σ_g a_{g,s_g},   D = [a_gp − a_{g,s_g}]_{p ∈ S_g∖s_g},
+
+   and λ_gp = μ_gp, λ_{g,s_g} = 1 − Σ_p μ_gp. All rows are solved at once by a
+   batched Gram–Schmidt QR of D (classical Gram–Schmidt with one
+   re-orthogonalization, "twice is enough"). Patterns whose D is (numerically)
+   rank deficient are rejected: by Carathéodory's argument some optimal λ has a
+   support with affinely independent directions, and every sub-pattern is
+   enumerated as well. Hence duplicate or collinear generators and the origin as
+   a generator need no special treatment. Patterns with more free directions than
+   the dimension d are skipped for the same reason.
+4. A candidate is feasible when its λ ≥ −tiny. Among feasible candidates a row
+   prefers one that satisfies the optimality (KKT) condition — in every group,
+   <a_gp, y> for p in the support equals the minimum of <a_gq, y> over the active
+   q — and among those the smallest ‖y‖. Single-vertex patterns are always
+   feasible, so every row gets an answer; the exact optimum is feasible and
+   satisfies KKT, so it wins.
+
+The loop runs over patterns, never over rows. The number of patterns is
+Π_g (2^{m_g} − 1) before the dimension cut; when it exceeds :data:`PATTERN_CAP`
+the solver falls back to a batched accelerated projected gradient method (FISTA
+with adaptive restart and a vectorized simplex projection) followed by an exact
+*polish*: the least-squares solve above on the support the iteration found (for
+a few support thresholds), keeping per row the best candidate by the same rule.
+The polish is exact whenever the iteration identified the optimal support, which
+it does for all but nearly degenerate rows; otherwise the iterate itself (a
+feasible point, ‖y‖² within the duality gap of the optimum) is returned.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+PATTERN_CAP = 4096
+"""Largest number of support patterns enumerated before the iterative fallback."""
+
+_RANK_RTOL = 1e-10  # a direction counts as dependent below this relative residual
+_RANK_ATOL = 1e-14  # ... or below this absolute residual (rows are scaled to max |entry| = 1)
+_FEASIBILITY_TOL = 1e-10  # λ ≥ −this counts as feasible
+_KKT_TOL = 1e-9  # absolute tolerance of the optimality check on scaled rows
+_FALLBACK_ITERATIONS = 3000
+_FALLBACK_GAP = 1e-15  # stop the iteration once every row's duality gap is below this
+_POLISH_THRESHOLDS = (0.0, 1e-9, 1e-6, 1e-3)
+
+Pattern = tuple[tuple[int, ...], ...]  # one nonempty tuple of entry indices per group
+
+
+def min_norm_point(center: np.ndarray, generators: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Minimum-norm points of a batch of sums of simplices.
+
+    center: (B, d); generators: (B, G, m, d); mask: (B, G, m) bool with at least one
+    True per group and row. Masked-out generators are ignored (they may hold any
+    value). Returns ``(points, weights)`` of shapes (B, d) and (B, G, m), where
+    ``points = center + Σ_g Σ_p weights · generators`` and every ``weights[b, g]`` lies
+    in the unit simplex over the active entries. G = 0 returns the center itself.
+
+    Raises :class:`~qdframe.errors.InputError` (a ValueError) naming the argument for
+    wrong shapes, non-finite values or an empty group.
+    """
+    center, generators, mask = _validate(center, generators, mask)
+    rows, groups, width, _ = generators.shape
+    weights = np.zeros((rows, groups, width))
+    if groups == 0 or rows == 0:
+        return center.copy(), weights
+    generators = np.where(mask[..., None], generators, 0.0)
+
+    scale = _row_scale(center, generators)
+    c = center / scale[:, None]
+    a = generators / scale[:, None, None, None]
+
+    fixed = (mask.sum(axis=2) == 1).all(axis=0)  # groups that are a single point in every row
+    weights[:, fixed] = mask[:, fixed]
+    c = c + np.einsum("bgp,bgpd->bd", weights[:, fixed], a[:, fixed])
+    live = np.flatnonzero(~fixed)
+    if live.size:
+        weights[:, live] = _solve_scaled(c, a[:, live], mask[:, live])
+
+    points = center + np.einsum("bgp,bgpd->bd", weights, generators)
+    return points, weights
+
+
+# ----------------------------------------------------------------------------- input
+
+
+def _validate(center: object, generators: object, mask: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    center = _real_array("center", center)
+    generators = _real_array("generators", generators)
+    mask = np.asarray(mask)
+    if center.ndim != 2:
+        raise InputError("center", "a 2-D array of shape (B, d)", center.shape)
+    rows, dim = center.shape
+    if generators.ndim != 4 or generators.shape[0] != rows or generators.shape[3] != dim:
+        raise InputError("generators", f"an array of shape ({rows}, G, m, {dim})", generators.shape)
+    if mask.shape != generators.shape[:3]:
+        raise InputError("mask", f"an array of shape {generators.shape[:3]}", mask.shape)
+    if mask.dtype != bool:
+        raise InputError("mask", "a boolean array", str(mask.dtype))
+    if not np.isfinite(center).all():
+        raise InputError("center", "finite values")
+    if not np.isfinite(generators[mask]).all():
+        raise InputError("generators", "finite values at the active (mask True) entries")
+    empty = ~mask.any(axis=2)
+    if empty.any():
+        row, group = np.argwhere(empty)[0]
+        raise InputError("mask", "at least one True entry in every group of every row", f"row {row}, group {group} empty")
+    return center, generators, mask
+
+
+def _real_array(name: str, value: object) -> np.ndarray:
+    array = np.asarray(value)
+    if array.dtype.kind not in "biuf":
+        raise InputError(name, "a real numeric array", str(array.dtype))
+    return array.astype(float, copy=False)
+
+
+def _row_scale(center: np.ndarray, generators: np.ndarray) -> np.ndarray:
+    """Largest absolute entry of each row (1 for an all-zero row)."""
+    rows = center.shape[0]
+    largest = np.maximum(
+        np.abs(center).max(axis=1, initial=0.0),
+        np.abs(generators.reshape(rows, -1)).max(axis=1, initial=0.0),
+    )
+    return np.where(largest > 0.0, largest, 1.0)
+
+
+# ------------------------------------------------------------------ the scaled problem
+
+
+def _solve_scaled(c: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Optimal weights (B, G, m) of the row-normalized problem (inactive generators are 0)."""
+    patterns = _support_patterns(mask.any(axis=0), budget=c.shape[1], cap=PATTERN_CAP)
+    if patterns is None:
+        return _iterate_and_polish(c, a, mask)
+    best = _Incumbent.empty(a.shape[:3])
+    for pattern in patterns:
+        lam, support, valid = _pattern_candidate(c, a, mask, pattern)
+        best.offer(c, a, mask, lam, support, valid)
+    return _cleaned(best.weights, mask)
+
+
+def _support_patterns(active: np.ndarray, budget: int, cap: int) -> list[Pattern] | None:
+    """Every choice of one nonempty subset of active entries per group with at most
+    `budget` free directions in total (Σ_g |S_g| − 1 ≤ d); None if there are more than `cap`."""
+    choices = []
+    for entries in active:
+        index = np.flatnonzero(entries).tolist()
+        choices.append([s for r in range(1, len(index) + 1) for s in itertools.combinations(index, r)])
+    patterns: list[Pattern] = []
+
+    def extend(group: int, chosen: Pattern, used: int) -> bool:
+        if group == len(choices):
+            patterns.append(chosen)
+            return len(patterns) <= cap
+        for subset in choices[group]:  # ordered by size, so `break` is safe
+            if used + len(subset) - 1 > budget:
+                break
+            if not extend(group + 1, chosen + (subset,), used + len(subset) - 1):
+                return False
+        return True
+
+    return patterns if extend(0, (), 0) else None
+
+
+def _pattern_candidate(
+    c: np.ndarray, a: np.ndarray, mask: np.ndarray, pattern: Pattern
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimizer on the affine hull of one support pattern, for all rows at once.
+
+    Returns the weights (B, G, m), the pattern's support (G, m) and the rows (B,) where
+    the candidate is valid: the pattern uses only active entries, its directions are
+    independent and the weights are nonnegative.
+    """
+    rows, groups, width, _ = a.shape
+    group_index = np.arange(groups)
+    base = np.array([subset[0] for subset in pattern])
+    support = np.zeros((groups, width), dtype=bool)
+    for g, subset in enumerate(pattern):
+        support[g, list(subset)] = True
+    valid = ~(support & ~mask).any(axis=(1, 2))
+
+    lam = np.zeros((rows, groups, width))
+    lam[:, group_index, base] = 1.0
+    free_g = np.array([g for g, subset in enumerate(pattern) for _ in subset[1:]], dtype=int)
+    free_p = np.array([p for subset in pattern for p in subset[1:]], dtype=int)
+    if free_g.size:
+        y0 = c + a[:, group_index, base].sum(axis=1)
+        directions = a[:, free_g, free_p] - a[:, free_g, base[free_g]]  # (B, k, d)
+        mu, dependent = _affine_least_squares(y0, directions)
+        lam[:, free_g, free_p] = mu
+        for g in np.unique(free_g):
+            lam[:, g, base[g]] -= mu[:, free_g == g].sum(axis=1)
+        valid &= ~dependent & (lam[:, support] >= -_FEASIBILITY_TOL).all(axis=1)
+    return lam, support, valid
+
+
+def _affine_least_squares(
+    y0: np.ndarray, directions: np.ndarray, present: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """μ minimizing ‖y0 + Σ_j μ_j directions_j‖ for every row, by a batched QR.
+
+    y0: (B, d); directions: (B, k, d); present: optional (B, k) bool — absent
+    columns get μ = 0. Numerically dependent columns are dropped as well (μ = 0) and
+    reported: returns μ (B, k) and a (B,) flag "some present column was dependent".
+    """
+    rows, count, _ = directions.shape
+    if present is None:
+        present = np.ones((rows, count), dtype=bool)
+    q = np.zeros_like(directions)  # orthonormal columns (0 for dropped ones)
+    r = np.zeros((rows, count, count))
+    dependent = np.zeros(rows, dtype=bool)
+    for j in range(count):
+        v = directions[:, j] * present[:, j, None]
+        for _ in range(2):  # classical Gram–Schmidt, twice
+            coefficients = np.einsum("bid,bd->bi", q[:, :j], v)
+            v = v - np.einsum("bi,bid->bd", coefficients, q[:, :j])
+            r[:, :j, j] += coefficients
+        residual = np.sqrt(np.einsum("bd,bd->b", v, v))
+        length = np.sqrt(np.einsum("bd,bd->b", directions[:, j], directions[:, j]))
+        drop = residual <= _RANK_RTOL * length + _RANK_ATOL
+        dependent |= drop & present[:, j]
+        keep = ~drop
+        q[:, j] = np.where(keep[:, None], v / np.where(keep, residual, 1.0)[:, None], 0.0)
+        r[:, j, j] = np.where(keep, residual, 1.0)
+        r[:, :j, j] *= keep[:, None]
+    rhs = -np.einsum("bkd,bd->bk", q, y0)
+    mu = np.zeros((rows, count))
+    for j in reversed(range(count)):  # back substitution R μ = −Qᵀ y0
+        mu[:, j] = (rhs[:, j] - np.einsum("bi,bi->b", r[:, j, j + 1 :], mu[:, j + 1 :])) / r[:, j, j]
+    return mu, dependent
+
+
+@dataclass
+class _Incumbent:
+    """Per-row best candidate: KKT-satisfying first, then least ‖y‖²."""
+
+    weights: np.ndarray
+    objective: np.ndarray
+    optimal: np.ndarray
+
+    @classmethod
+    def empty(cls, shape: tuple[int, ...]) -> "_Incumbent":
+        rows = shape[0]
+        return cls(np.zeros(shape), np.full(rows, np.inf), np.zeros(rows, dtype=bool))
+
+    def offer(
+        self,
+        c: np.ndarray,
+        a: np.ndarray,
+        mask: np.ndarray,
+        lam: np.ndarray,
+        support: np.ndarray,
+        valid: np.ndarray,
+    ) -> None:
+        objective, violation = _objective_and_violation(c, a, mask, lam, support)
+        optimal = violation <= _KKT_TOL
+        better = valid & ((optimal & ~self.optimal) | ((optimal == self.optimal) & (objective < self.objective)))
+        self.weights[better] = lam[better]
+        self.objective[better] = objective[better]
+        self.optimal[better] = optimal[better]
+
+
+def _objective_and_violation(
+    c: np.ndarray, a: np.ndarray, mask: np.ndarray, lam: np.ndarray, support: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """‖y‖² and the KKT violation max_g (max_{p∈S_g} <a_gp,y> − min_{q active} <a_gq,y>)."""
+    y = c + np.einsum("bgp,bgpd->bd", lam, a)
+    values = np.einsum("bgpd,bd->bgp", a, y)
+    lowest = np.where(mask, values, np.inf).min(axis=2)
+    highest = np.where(support, values, -np.inf).max(axis=2)
+    return np.einsum("bd,bd->b", y, y), (highest - lowest).max(axis=1)
+
+
+def _cleaned(lam: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Clip round-off negatives, zero masked entries and renormalize every group to sum 1."""
+    lam = np.where(mask, np.maximum(lam, 0.0), 0.0)
+    return lam / lam.sum(axis=2, keepdims=True)
+
+
+# ------------------------------------------------------------ fallback: iterate + polish
+
+
+def _iterate_and_polish(c: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Too many patterns: accelerated projected gradient, then an exact solve on its support."""
+    lam = _accelerated_projected_gradient(c, a, mask)
+    best = _Incumbent.empty(lam.shape)
+    best.offer(c, a, mask, lam, lam > 0.0, np.ones(lam.shape[0], dtype=bool))
+    for threshold in _POLISH_THRESHOLDS:
+        support = mask & (lam > threshold * lam.max(axis=2, keepdims=True))
+        polished = _solve_on_support(c, a, support)
+        feasible = (polished >= -_FEASIBILITY_TOL).all(axis=(1, 2))
+        best.offer(c, a, mask, polished, support, feasible)
+    return _cleaned(best.weights, mask)
+
+
+def _solve_on_support(c: np.ndarray, a: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """Least-squares weights on a per-row support (B, G, m); dependent directions are dropped."""
+    rows, groups, width, dim = a.shape
+    base = np.argmax(support, axis=2)  # a supported entry of every group
+    row_index = np.arange(rows)[:, None]
+    base_vectors = a[row_index, np.arange(groups), base]  # (B, G, d)
+    y0 = c + base_vectors.sum(axis=1)
+    directions = (a - base_vectors[:, :, None]).reshape(rows, groups * width, dim)
+    is_base = np.arange(width) == base[..., None]
+    mu, _ = _affine_least_squares(y0, directions, (support & ~is_base).reshape(rows, -1))
+    lam = mu.reshape(rows, groups, width)
+    lam[is_base] = 1.0 - lam.sum(axis=2).ravel()
+    return lam
+
+
+def _accelerated_projected_gradient(c: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """FISTA with adaptive restart on λ; feasible weights (B, G, m) close to optimal."""
+    count = mask.sum(axis=2, keepdims=True)
+    mean = a.sum(axis=2) / count  # shifting a group by a constant leaves the problem unchanged
+    c = c + mean.sum(axis=1)
+    a = (a - mean[:, :, None]) * mask[..., None]
+    lipschitz = np.maximum(np.einsum("bgpd,bgpd->b", a, a), 1e-300)[:, None, None]
+
+    lam = mask / count
+    extrapolated = lam
+    momentum = np.ones(lam.shape[0])
+    for iteration in range(_FALLBACK_ITERATIONS):
+        y = c + np.einsum("bgp,bgpd->bd", extrapolated, a)
+        gradient = np.einsum("bgpd,bd->bgp", a, y)
+        new = _project_to_simplices(extrapolated - gradient / lipschitz, mask)
+        restart = np.einsum("bgp,bgp->b", gradient, new - lam) > 0.0
+        following = (1.0 + np.sqrt(1.0 + 4.0 * momentum**2)) / 2.0
+        beta = np.where(restart, 0.0, (momentum - 1.0) / following)
+        momentum = np.where(restart, 1.0, following)
+        extrapolated = new + beta[:, None, None] * (new - lam)
+        lam = new
+        if iteration % 50 == 49 and _duality_gap(c, a, mask, lam).max() <= _FALLBACK_GAP:
+            break
+    return lam
+
+
+def _duality_gap(c: np.ndarray, a: np.ndarray, mask: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Frank–Wolfe gap Σ_g (Σ_p λ_gp <a_gp,y> − min_q <a_gq,y>) ≥ ½‖y‖² − ½‖y*‖²."""
+    y = c + np.einsum("bgp,bgpd->bd", lam, a)
+    values = np.einsum("bgpd,bd->bgp", a, y)
+    lowest = np.where(mask, values, np.inf).min(axis=2)
+    return ((lam * values).sum(axis=2) - lowest).sum(axis=1)
+
+
+def _project_to_simplices(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Euclidean projection of every v[b, g] onto the unit simplex over its active entries."""
+    width = v.shape[-1]
+    values = np.where(mask, v, -np.inf)
+    ordered = -np.sort(-values, axis=-1)
+    finite = np.isfinite(ordered)
+    sums = np.cumsum(np.where(finite, ordered, 0.0), axis=-1)
+    positions = np.arange(1, width + 1)
+    positive = finite & (ordered - (sums - 1.0) / positions > 0.0)
+    last = width - 1 - np.argmax(positive[..., ::-1], axis=-1)
+    threshold = (np.take_along_axis(sums, last[..., None], axis=-1) - 1.0) / (last[..., None] + 1.0)
+    return np.where(mask, np.maximum(values - threshold, 0.0), 0.0)

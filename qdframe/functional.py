@@ -1,0 +1,373 @@
+"""The discretized functional I = φ + χ + ω + υ (+ cost) and its quasidifferential.
+
+Unknowns ξ are stored per node as one row [x (n) | z (n)], ξ of shape (N, 2n). The
+value x(t_0) = x0 is known, so it is not an unknown: it is fixed at node 0 and the
+quasidifferential is projected onto the remaining free unknowns.
+
+Terms (paper (3.13), (3.14), (3.14'), (3.17)), with trapezoid weights w_k and the
+cumulative trapezoid Z = ∫_0^t z of :class:`~qdframe.grid.Grid`:
+
+    φ = ½ Σ_k w_k Σ_b h_b(x_k, z_k)²      χ = ½ Σ_{j∈J} (x0_j + Z_{N−1,j} − xT_j)²
+    ω = ½ Σ_k w_k ‖e(x_k)‖²               υ = ½ Σ_k w_k ‖x_k − x0 − Z_k‖²
+
+With a cost the objective is ∫cost + λ·I (Example 7.1), otherwise I.
+
+The quasidifferential [A_k, B_k] per node is expressed in the L² metric: the
+integrand's quasidifferential (formulas (4.5), (4.555), (4.6)) plus the discrete
+gradient of the coupled terms χ, υ divided by w_k (formulas (4.44), (4.55)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ModelOutputError
+from .grid import Grid
+from .model import InclusionModel, SetBlock
+from .psi import maximize_on_sphere
+from .quasidifferential import Quasidifferential, SimplexSum
+
+
+@dataclass(frozen=True)
+class Terms:
+    """Values of the functional's terms at one iterate."""
+
+    phi: float
+    chi: float
+    omega: float
+    upsilon: float
+    cost: float
+    I: float
+    objective: float
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Checks of a trajectory that do not depend on the functional's weighting."""
+
+    boundary_error: float  # max_j |x0_j + ∫z_j − xT_j|
+    inclusion_residual: float  # max_k max_b h_b(x_k, z_k)
+    surface_error: float | None  # max_k ‖e(x_k)‖_∞
+    consistency_error: float  # max_k |x_k − x0 − Z_k|
+
+
+@dataclass
+class _Piece:
+    """One group of pieces at ψ*: values (N, m) and gradients (N, m, n)."""
+
+    values: np.ndarray
+    grads: np.ndarray
+
+
+@dataclass
+class _BlockState:
+    """h_b, ψ*_b and the max/min groups evaluated at ψ*."""
+
+    h: np.ndarray  # (N,)
+    psi: np.ndarray  # (N, k)
+    max_parts: list[_Piece]  # values <f_q, ψ*>, grads ψ*ᵀ ∂f_q/∂x
+    min_parts: list[_Piece]  # values g_p(x, ψ*), grads ∂g_p/∂x
+
+
+class Functional:
+    """The discretized objective of a model on a grid."""
+
+    def __init__(self, model: InclusionModel, grid: Grid, psi_samples: int = 128) -> None:
+        self.model = model
+        self.grid = grid
+        self.n = model.n_states
+        self.dim = 2 * self.n
+        self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
+        self.surface = model.surface()
+        self.cost = model.cost()
+        self.penalty = float(self.cost.weight) if self.cost is not None else 1.0
+        self.end = np.asarray(model.end_indices, dtype=int)
+        self.psi_samples = psi_samples
+        self.free = np.ones((grid.nodes, self.dim), dtype=bool)
+        self.free[0, : self.n] = False  # x(t_0) = x0 is known
+
+    # ---------------------------------------------------------------- layout
+    @property
+    def weights(self) -> np.ndarray:
+        return self.grid.weights
+
+    def split(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return xi[:, : self.n], xi[:, self.n :]
+
+    def pack(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        xi = np.concatenate([x, z], axis=1).astype(float)
+        xi[0, : self.n] = self.model.x0
+        return xi
+
+    def initial_point(self) -> np.ndarray:
+        x, z = self.model.initial_guess(self.grid.t)
+        shape = (self.grid.nodes, self.n)
+        for label, array in (("x", x), ("z", z)):
+            if np.shape(array) != shape:
+                raise ModelOutputError(
+                    f"model {self.model.name!r}: initial_guess {label} has shape {np.shape(array)}, expected {shape}"
+                )
+        return self.pack(np.asarray(x, float), np.asarray(z, float))
+
+    # ---------------------------------------------------------------- values
+    def terms(self, xi: np.ndarray) -> Terms:
+        """φ, χ, ω, υ, the cost, I and the objective at ξ."""
+        x, z = self.split(xi)
+        w = self.weights
+        h2 = sum(state.h**2 for state in self._block_states(x, z))
+        phi = 0.5 * float(w @ h2)
+        chi = 0.5 * float(np.sum(self._end_residual(z) ** 2))
+        omega = 0.0
+        if self.surface is not None:
+            e, _ = self._surface(x)
+            omega = 0.5 * float(w @ np.sum(e**2, axis=1))
+        upsilon = 0.5 * float(w @ np.sum(self._consistency(x, z) ** 2, axis=1))
+        total = phi + chi + omega + upsilon
+        cost = float(w @ self._cost_integrand(x)) if self.cost is not None else 0.0
+        objective = cost + self.penalty * total if self.cost is not None else total
+        return Terms(phi, chi, omega, upsilon, cost, total, objective)
+
+    def objective(self, xi: np.ndarray) -> float:
+        return self.terms(xi).objective
+
+    def residuals(self, xi: np.ndarray) -> Residuals:
+        x, z = self.split(xi)
+        end = self._end_residual(z)
+        h = np.max([np.max(state.h) for state in self._block_states(x, z)])
+        surface_error = None
+        if self.surface is not None:
+            surface_error = float(np.max(np.abs(self._surface(x)[0])))
+        return Residuals(
+            boundary_error=float(np.max(np.abs(end))) if end.size else 0.0,
+            inclusion_residual=float(h),
+            surface_error=surface_error,
+            consistency_error=float(np.max(np.abs(self._consistency(x, z)))),
+        )
+
+    def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
+        """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
+        x, _ = self.split(xi)
+        bounds: list[tuple[np.ndarray, np.ndarray] | None] = []
+        for block in self.blocks:
+            if block.size != 1:
+                bounds.append(None)
+                continue
+            c_plus = self._support_1d(block, x, +1.0)
+            c_minus = self._support_1d(block, x, -1.0)
+            bounds.append((-c_minus, c_plus))
+        return bounds
+
+    # ------------------------------------------------------ quasidifferential
+    def quasidifferential(self, xi: np.ndarray, delta: float) -> Quasidifferential:
+        """[A_k, B_k] for every node, δ-active pieces, L² metric (paper Section 4)."""
+        x, z = self.split(xi)
+        nodes, n = x.shape
+        w = self.weights
+        smooth = np.zeros((nodes, self.dim))
+        # υ (4.55): x-part r_k, z-part −(Cᵀ w r)_k / w_k
+        r = self._consistency(x, z)
+        smooth[:, :n] += r
+        smooth[:, n:] -= self.grid.cumulative_adjoint(w[:, None] * r) / w[:, None]
+        # χ (4.44): the end residual on the fixed coordinates' z, at every node
+        if self.end.size:
+            smooth[:, n + self.end] += self._end_residual(z)
+        # ω (4.6)
+        if self.surface is not None:
+            e, de = self._surface(x)
+            smooth[:, :n] += np.einsum("ko,kon->kn", e, de)
+        sub_groups: list[tuple[np.ndarray, np.ndarray]] = []
+        sup_groups: list[tuple[np.ndarray, np.ndarray]] = []
+        for block, state in zip(self.blocks, self._block_states(x, z)):
+            h = state.h
+            positive = h > 0
+            smooth[:, n + np.asarray(block.coords)] += h[:, None] * state.psi  # h ψ* e_z
+            for part in state.min_parts:  # −min g is convex: subdifferential (4.555)
+                mask = _delta_active(-part.values, delta, positive)
+                sub_groups.append((self._embed_x(-h[:, None, None] * part.grads), mask))
+            for part in state.max_parts:  # −max <f, ψ*> is concave: superdifferential (4.5)
+                mask = _delta_active(part.values, delta, positive)
+                sup_groups.append((self._embed_x(-h[:, None, None] * part.grads), mask))
+        sub = _assemble(smooth, sub_groups).scaled(self.penalty)
+        sup = _assemble(np.zeros_like(smooth), sup_groups).scaled(self.penalty)
+        if self.cost is not None:
+            cost_sub, cost_sup = self._cost_quasidifferential(x, delta)
+            sub, sup = sub + cost_sub, sup + cost_sup
+        return Quasidifferential(_project(sub, self.free), _project(sup, self.free))
+
+    # ---------------------------------------------------------------- pieces
+    def _end_residual(self, z: np.ndarray) -> np.ndarray:
+        if not self.end.size:
+            return np.zeros(0)
+        return self.model.x0[self.end] + self.grid.integral(z[:, self.end]) - self.model.end_values
+
+    def _consistency(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        return x - self.model.x0 - self.grid.cumulative(z)
+
+    def _embed_x(self, grads: np.ndarray) -> np.ndarray:
+        """Gradients in x (…, n) placed in the x-slots of ξ's row (…, 2n)."""
+        out = np.zeros(grads.shape[:-1] + (self.dim,))
+        out[..., : self.n] = grads
+        return out
+
+    def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        e, de = self.surface.function(x)  # type: ignore[union-attr]
+        self._check("surface", e, (x.shape[0], None))
+        self._check("surface Jacobian", de, (x.shape[0], e.shape[1], self.n))
+        return e, de
+
+    def _cost_integrand(self, x: np.ndarray) -> np.ndarray:
+        total = np.zeros(x.shape[0])
+        for fn in self.cost.max_groups:  # type: ignore[union-attr]
+            total += self._scalar_pieces(fn, x, "cost max-group")[0].max(axis=1)
+        for fn in self.cost.min_groups:  # type: ignore[union-attr]
+            total += self._scalar_pieces(fn, x, "cost min-group")[0].min(axis=1)
+        return total
+
+    def _cost_quasidifferential(self, x: np.ndarray, delta: float) -> tuple[SimplexSum, SimplexSum]:
+        everywhere = np.ones(x.shape[0], dtype=bool)
+        sub = [(self._embed_x(g), _delta_active(v, delta, everywhere))
+               for v, g in (self._scalar_pieces(fn, x, "cost max-group") for fn in self.cost.max_groups)]  # type: ignore[union-attr]
+        sup = [(self._embed_x(g), _delta_active(-v, delta, everywhere))
+               for v, g in (self._scalar_pieces(fn, x, "cost min-group") for fn in self.cost.min_groups)]  # type: ignore[union-attr]
+        zero = np.zeros((x.shape[0], self.dim))
+        return _assemble(zero, sub), _assemble(zero, sup)
+
+    def _scalar_pieces(self, fn, x: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+        values, grads = fn(x)
+        self._check(label, values, (x.shape[0], None))
+        self._check(f"{label} gradient", grads, (x.shape[0], values.shape[1], self.n))
+        return values, grads
+
+    def _max_group(self, block: SetBlock, group, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f, jac = group.pieces(x)
+        label = f"block {block.name or block.coords} max-group {group.name!r}"
+        self._check(label, f, (x.shape[0], None, block.size))
+        self._check(f"{label} Jacobian", jac, (x.shape[0], f.shape[1], block.size, self.n))
+        return f, jac
+
+    def _min_group(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        g, grad = group.pieces(x, psi)
+        label = f"block {block.name or block.coords} min-group {group.name!r}"
+        self._check(label, g, (x.shape[0], None))
+        self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.n))
+        return g, grad
+
+    def _support_1d(self, block: SetBlock, x: np.ndarray, psi: float) -> np.ndarray:
+        """c(F_b(x), ψ) for ψ = ±1 at every node."""
+        total = np.zeros(x.shape[0])
+        for group in block.max_groups:
+            total += (self._max_group(block, group, x)[0][:, :, 0] * psi).max(axis=1)
+        psi_column = np.full((x.shape[0], 1), psi)
+        for group in block.min_groups:
+            total += self._min_group(block, group, x, psi_column)[0].min(axis=1)
+        return total
+
+    def _block_states(self, x: np.ndarray, z: np.ndarray) -> list[_BlockState]:
+        return [
+            self._state_1d(block, x, z) if block.size == 1 else self._state_sphere(block, x, z)
+            for block in self.blocks
+        ]
+
+    def _state_1d(self, block: SetBlock, x: np.ndarray, z: np.ndarray) -> _BlockState:
+        """ψ ∈ {−1, +1}: ψ* in closed form (the nearer violated end of the interval)."""
+        nodes = x.shape[0]
+        zi = z[:, block.coords[0]]
+        maxes = [self._max_group(block, group, x) for group in block.max_groups]
+        mins = {
+            sign: [self._min_group(block, group, x, np.full((nodes, 1), sign)) for group in block.min_groups]
+            for sign in (1.0, -1.0)
+        }
+
+        def support(sign: float) -> np.ndarray:
+            total = np.zeros(nodes)
+            for f, _ in maxes:
+                total += (sign * f[:, :, 0]).max(axis=1)
+            for g, _ in mins[sign]:
+                total += g.min(axis=1)
+            return total
+
+        ell_plus, ell_minus = zi - support(1.0), -zi - support(-1.0)
+        upper = ell_plus >= ell_minus
+        psi = np.where(upper, 1.0, -1.0)
+        h = np.maximum(0.0, np.where(upper, ell_plus, ell_minus))
+        max_parts = [_Piece(psi[:, None] * f[:, :, 0], psi[:, None, None] * jac[:, :, 0, :]) for f, jac in maxes]
+        min_parts = [
+            _Piece(np.where(upper[:, None], gp, gm), np.where(upper[:, None, None], dp, dm))
+            for (gp, dp), (gm, dm) in zip(mins[1.0], mins[-1.0])
+        ]
+        return _BlockState(h, psi[:, None], max_parts, min_parts)
+
+    def _state_sphere(self, block: SetBlock, x: np.ndarray, z: np.ndarray) -> _BlockState:
+        """ψ ∈ S_k: ψ* searched numerically, vectorized over nodes (Remark 5.1)."""
+        nodes, k = x.shape[0], block.size
+        zb = z[:, list(block.coords)]
+        maxes = [self._max_group(block, group, x) for group in block.max_groups]
+
+        def ell(psi: np.ndarray) -> np.ndarray:  # psi (N, M, k) -> (N, M)
+            count = psi.shape[1]
+            value = np.einsum("nk,nmk->nm", zb, psi)
+            for f, _ in maxes:
+                value -= np.einsum("nqk,nmk->nmq", f, psi).max(axis=2)
+            if block.min_groups:
+                x_rep = np.repeat(x, count, axis=0)
+                flat = psi.reshape(nodes * count, k)
+                for group in block.min_groups:
+                    g, _ = group.pieces(x_rep, flat)
+                    value -= g.reshape(nodes, count, -1).min(axis=2)
+            return value
+
+        psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples)
+        h = np.maximum(0.0, ell(psi[:, None, :])[:, 0])
+        max_parts = [
+            _Piece(np.einsum("nqk,nk->nq", f, psi), np.einsum("nqkd,nk->nqd", jac, psi)) for f, jac in maxes
+        ]
+        min_parts = [_Piece(*self._min_group(block, group, x, psi)) for group in block.min_groups]
+        return _BlockState(h, psi, max_parts, min_parts)
+
+    def _check(self, label: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
+        array = np.asarray(array)
+        if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
+            expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+            raise ModelOutputError(
+                f"model {self.model.name!r}: {label} returned shape {array.shape}, expected {expected}"
+            )
+        finite = np.isfinite(array)
+        if not finite.all():
+            bad = np.argwhere(~finite)[0]
+            node = int(bad[0])
+            when = f" (t = {self.grid.t[node]:.6g})" if array.shape[0] == self.grid.nodes else ""
+            raise ModelOutputError(
+                f"model {self.model.name!r}: {label} returned a non-finite value at node {node}{when}"
+            )
+
+
+def _delta_active(values: np.ndarray, delta: float, spread: np.ndarray) -> np.ndarray:
+    """Pieces within δ of the group's maximum (paper Section 6); only the best where not `spread`."""
+    top = values.max(axis=1, keepdims=True)
+    active = values >= top - delta
+    best = np.zeros_like(active)
+    best[np.arange(values.shape[0]), np.argmax(values, axis=1)] = True
+    return np.where(spread[:, None], active, best)
+
+
+def _assemble(center: np.ndarray, groups: list[tuple[np.ndarray, np.ndarray]]) -> SimplexSum:
+    """center + Σ co{generators} from a list of (generators (N, m, d), mask (N, m))."""
+    if not groups:
+        return SimplexSum.point(center)
+    width = max(g.shape[1] for g, _ in groups)
+    nodes, dim = center.shape
+    generators = np.zeros((nodes, len(groups), width, dim))
+    mask = np.zeros((nodes, len(groups), width), dtype=bool)
+    for index, (g, m) in enumerate(groups):
+        generators[:, index, : g.shape[1]] = g
+        mask[:, index, : m.shape[1]] = m
+    return SimplexSum(center, generators, mask).compact()
+
+
+def _project(polytope: SimplexSum, free: np.ndarray) -> SimplexSum:
+    """Restrict to the free unknowns (fixed components set to 0)."""
+    return SimplexSum(
+        polytope.center * free, polytope.generators * free[:, None, None, :], polytope.mask
+    ).compact()

@@ -1,0 +1,195 @@
+"""The InclusionModel interface: what a model author writes.
+
+A model states the problem of paper Section 3:
+
+    x'(t) ∈ F(x(t)),  x(0) = x0,  x_j(T) = xT_j (j ∈ J),  e(x(t)) = 0 (optional),
+
+with F split into blocks of coordinates. Each block's set is given through its
+support function (paper (support), (supf), (subf)):
+
+    c(F_b(x), ψ) = Σ_j max_q <f_jq(x), ψ>  +  Σ_j min_p g_jp(x, ψ),
+
+ψ ∈ {−1, +1} for a one-coordinate block (closed form) and ψ ∈ S_k for a block of k
+coordinates (ψ* is searched numerically, Remark 5.1 / Example 7.2). Every piece
+comes with its x-gradient, evaluated for all nodes at once: arrays are (N, ...).
+
+An exact equation z_i = f(x) is the one-piece max-group f (a singleton set).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from .errors import InputError
+
+# x (N, n) -> values (N, m, k) and Jacobians (N, m, k, n)
+MaxPieces = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+# x (N, n), psi (N, k) -> values (N, m) and x-gradients (N, m, n)
+MinPieces = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+# x (N, n) -> values (N, m) and gradients (N, m, n)
+ScalarPieces = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class MaxGroup:
+    """max_q <f_q(x), ψ>: the support function of co{f_1(x), …, f_m(x)} (paper (supf)).
+
+    `pieces(x)` returns f of shape (N, m, k) and ∂f/∂x of shape (N, m, k, n).
+    """
+
+    pieces: MaxPieces
+    name: str = "max"
+
+
+@dataclass(frozen=True)
+class MinGroup:
+    """min_p g_p(x, ψ) (paper (subf)): intersections, Remark 5.1's c̃.
+
+    `pieces(x, psi)` returns g of shape (N, m) and ∂g/∂x of shape (N, m, n).
+    """
+
+    pieces: MinPieces
+    name: str = "min"
+
+
+@dataclass(frozen=True)
+class SetBlock:
+    """The set F_b(x) of the coordinates `coords` of z, via its support function."""
+
+    coords: tuple[int, ...]
+    max_groups: tuple[MaxGroup, ...] = ()
+    min_groups: tuple[MinGroup, ...] = ()
+    name: str = ""
+
+    @property
+    def size(self) -> int:
+        return len(self.coords)
+
+    @classmethod
+    def equation(cls, coord: int, rhs: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], name: str = "") -> "SetBlock":
+        """The exact equation z_coord = rhs(x); rhs returns values (N,) and gradients (N, n)."""
+
+        def pieces(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            value, grad = rhs(x)
+            return value[:, None, None], grad[:, None, None, :]
+
+        return cls((coord,), (MaxGroup(pieces, name or f"z{coord}"),), (), name)
+
+
+@dataclass(frozen=True)
+class Cost:
+    """A cost integrand ∫ [Σ_j max_q a_jq(x) + Σ_j min_p b_jp(x)] dt with penalty weight λ.
+
+    The descent then minimizes the cost + λ·I (paper Example 7.1). Each group's
+    `pieces(x)` returns values (N, m) and gradients (N, m, n). For `solved` to
+    certify anything the cost must be ≥ 0 with minimum 0 on a solution.
+    """
+
+    max_groups: tuple[ScalarPieces, ...] = ()
+    min_groups: tuple[ScalarPieces, ...] = ()
+    weight: float = 1.0
+
+
+@dataclass(frozen=True)
+class Surface:
+    """e(x) = 0: `function(x)` returns e (N, o) and ∂e/∂x (N, o, n)."""
+
+    function: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+class InclusionModel(ABC):
+    """A differential inclusion with boundary data (paper Section 3).
+
+    Subclasses set the class attributes and implement :meth:`blocks`; override
+    :meth:`surface`, :meth:`cost`, :meth:`initial_guess` and :meth:`exact_solution`
+    as the scene needs. `T`, `x0` and `end_values` can be overridden per instance.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    state_names: ClassVar[tuple[str, ...]] = ()
+    default_T: ClassVar[float] = 1.0
+    default_x0: ClassVar[tuple[float, ...]] = ()
+    end_indices: ClassVar[tuple[int, ...]] = ()  # J, zero-based
+    default_end_values: ClassVar[tuple[float, ...]] = ()
+    default_tol: ClassVar[float] = 1e-3
+
+    def __init__(
+        self,
+        T: float | None = None,
+        x0: Sequence[float] | None = None,
+        end_values: Sequence[float] | None = None,
+    ) -> None:
+        n = len(self.state_names)
+        if n == 0:
+            raise InputError(f"{type(self).__name__}.state_names", "a non-empty tuple of names")
+        self.T = _positive_float("T", self.default_T if T is None else T)
+        self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n)
+        for j in self.end_indices:
+            if not (isinstance(j, (int, np.integer)) and 0 <= j < n):
+                raise InputError(f"{type(self).__name__}.end_indices", f"indices in 0..{n - 1}", j)
+        if len(set(self.end_indices)) != len(self.end_indices):
+            raise InputError(f"{type(self).__name__}.end_indices", "distinct indices", self.end_indices)
+        values = self.default_end_values if end_values is None else end_values
+        self.end_values = _finite_vector("xT", values, len(self.end_indices))
+        self._check_blocks()
+
+    @property
+    def n_states(self) -> int:
+        return len(self.state_names)
+
+    @abstractmethod
+    def blocks(self) -> Sequence[SetBlock]:
+        """The blocks of F, covering every state coordinate exactly once."""
+
+    def surface(self) -> Surface | None:
+        """The surface e(x) = 0, or None (no ω term)."""
+        return None
+
+    def cost(self) -> Cost | None:
+        """The cost integrand and its penalty weight λ, or None."""
+        return None
+
+    def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The first iterate (x, z), each (N, n). Default: x ≡ x0, z ≡ 0."""
+        return np.tile(self.x0, (t.size, 1)), np.zeros((t.size, self.n_states))
+
+    def exact_solution(self, t: np.ndarray) -> np.ndarray | None:
+        """A known solution x(t) (N, n) for the default boundary data, or None."""
+        return None
+
+    def _check_blocks(self) -> None:
+        covered = sorted(c for block in self.blocks() for c in block.coords)
+        if covered != list(range(self.n_states)):
+            raise InputError(
+                f"{type(self).__name__}.blocks",
+                f"blocks covering each coordinate 0..{self.n_states - 1} exactly once",
+                covered,
+            )
+
+
+def _positive_float(field_name: str, value: object) -> float:
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InputError(field_name, "a positive number", value) from None
+    if not np.isfinite(number) or number <= 0:
+        raise InputError(field_name, "a positive finite number", value)
+    return number
+
+
+def _finite_vector(field_name: str, values: object, length: int) -> np.ndarray:
+    try:
+        vector = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(field_name, f"{length} numbers", values) from None
+    if vector.size != length:
+        raise InputError(field_name, f"{length} comma-separated numbers", ",".join(map(str, vector)))
+    if not np.all(np.isfinite(vector)):
+        raise InputError(field_name, "finite numbers (no NaN or inf)", ",".join(map(str, vector)))
+    return vector

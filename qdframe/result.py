@@ -1,0 +1,113 @@
+"""The result of a solve and its JSON form (DESIGN.md §5)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+STATUSES = ("solved", "stationary", "max_iter", "failed")
+
+
+@dataclass(frozen=True)
+class IterationRecord:
+    """One row of the history: the state after `iteration` accepted steps."""
+
+    iteration: int
+    objective: float
+    I: float
+    step: float  # γ of the step that led here (0 for the first iterate)
+    direction_norm: float  # L² norm of the direction G that led here
+    deviation: float  # max_k ‖v̄_k + w̄_k‖ of that direction
+    time_s: float  # seconds since the solve started
+
+
+@dataclass
+class SolveResult:
+    """Everything a solve produced; `status` says honestly how it ended."""
+
+    model: str
+    direction: str
+    line_search: str
+    nodes: int
+    T: float
+    status: str
+    message: str
+    iterations: int
+    wall_time_s: float
+    objective: float
+    I: float
+    terms: dict[str, float]
+    cost: float | None
+    boundary_error: float
+    inclusion_residual: float
+    surface_error: float | None
+    consistency_error: float
+    solution_error: float | None
+    t: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    u: np.ndarray | None
+    state_names: tuple[str, ...]
+    set_bounds: list[Any]
+    options: dict[str, Any]
+    history: list[IterationRecord] = field(default_factory=list)
+
+    @property
+    def solved(self) -> bool:
+        return self.status == "solved"
+
+    def to_dict(self) -> dict[str, Any]:
+        data = {k: v for k, v in self.__dict__.items() if k != "history"}
+        data["history"] = [asdict(record) for record in self.history]
+        return _plain(data)
+
+    def to_json(self, path: str | Path | None = None, indent: int | None = 1) -> str:
+        """The JSON text; also written to `path` if given."""
+        text = json.dumps(self.to_dict(), indent=indent, allow_nan=False)
+        if path is not None:
+            Path(path).write_text(text + "\n")
+        return text
+
+    def summary(self) -> str:
+        """A short human-readable table."""
+        rows = [
+            ("model", self.model),
+            ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
+            ("direction / line search", f"{self.direction} / {self.line_search}"),
+            ("nodes, T", f"{self.nodes}, {self.T:g}"),
+            ("iterations", str(self.iterations)),
+            ("wall time", f"{self.wall_time_s:.3f} s"),
+            ("objective", f"{self.objective:.3e}"),
+            ("I = φ+χ+ω+υ", f"{self.I:.3e}  (" + ", ".join(f"{k} {v:.1e}" for k, v in self.terms.items()) + ")"),
+            ("boundary error", f"{self.boundary_error:.3e}"),
+            ("inclusion residual", f"{self.inclusion_residual:.3e}"),
+            ("consistency error", f"{self.consistency_error:.3e}"),
+        ]
+        if self.cost is not None:
+            rows.insert(7, ("cost", f"{self.cost:.3e}"))
+        if self.surface_error is not None:
+            rows.append(("surface error", f"{self.surface_error:.3e}"))
+        if self.solution_error is not None:
+            rows.append(("error vs known solution", f"{self.solution_error:.3e}"))
+        width = max(len(k) for k, _ in rows)
+        return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def _plain(value: Any) -> Any:
+    """NumPy arrays and scalars to JSON-ready lists and floats (non-finite to None)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        number = float(value)
+        return number if np.isfinite(number) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
