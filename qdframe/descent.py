@@ -25,7 +25,7 @@ class DescentOptions:
     """The method's parameters; the paper's defaults δ = 1e-3, ε = 1e-2, γ̄ = 1 (Section 7)."""
 
     max_iter: int = 500
-    tol: float = 1e-3
+    tol: float = 1e-6
     delta: float = 1e-3
     eps: float = 1e-2
     gamma_max: float = 1.0

@@ -1,0 +1,200 @@
+"""The `qdframe` command (DESIGN.md §5): `list` and `solve`.
+
+Bad input ends with one line naming the field and the expected form: exit status 2
+for usage errors, 1 for failures, and a traceback only with --debug.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .errors import InputError, QdframeError
+from .registry import GROUPS, KIND_LABEL, available
+
+
+class _UsageError(Exception):
+    """A command-line usage error, already formatted as one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit status 2)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise _UsageError(f"{self.prog}: error: {message}")
+
+
+def _positive_int(minimum: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}")
+        return value
+
+    return parse
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not np.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
+def _vector(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers like 0,1.5,-2, got {text!r}") from None
+    if not all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f"expected finite numbers (no NaN or inf), got {text!r}")
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="qdframe", description="Trajectories of nonsmooth differential inclusions.")
+    parser.add_argument("--version", action="version", version=f"qdframe {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    lister = commands.add_parser("list", help="registered models, directions and line searches")
+    lister.add_argument("--json", nargs="?", const="-", metavar="FILE", help="write JSON (to stdout without FILE)")
+
+    solve = commands.add_parser("solve", help="solve a model by quasidifferential descent")
+    solve.add_argument("model", help="model name (see `qdframe list`)")
+    solve.add_argument("--direction", default="native", help="direction solver (default: native)")
+    solve.add_argument("--line-search", default="golden", help="line search (default: golden)")
+    solve.add_argument("--nodes", type=_positive_int(2), default=101, help="grid nodes N ≥ 2 (default 101)")
+    solve.add_argument("--max-iter", type=_positive_int(0), default=500, help="iteration budget (default 500)")
+    solve.add_argument("--tol", type=_positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
+    solve.add_argument("--delta", type=_positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
+    solve.add_argument("--eps", type=_positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
+    solve.add_argument("--gamma-max", type=_positive_float, default=1.0, help="line-search bound γ̄ (default 1)")
+    solve.add_argument("--T", type=_positive_float, help="final time (overrides the model's)")
+    solve.add_argument("--x0", type=_vector, help="initial state V,V,... (overrides the model's)")
+    solve.add_argument("--xT", type=_vector, help="end values of the fixed coordinates J, in order")
+    solve.add_argument("--json", metavar="FILE", help="write the result as JSON")
+    solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
+    solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    debug = "--debug" in argv
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command == "list":
+            return _list(args)
+        return _solve(args)
+    except _UsageError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    except InputError as exc:
+        if debug:
+            raise
+        print(f"qdframe: error: {exc}", file=sys.stderr)
+        return 2
+    except QdframeError as exc:
+        if debug:
+            raise
+        print(f"qdframe: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def _list(args: argparse.Namespace) -> int:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        listing = {
+            kind: [
+                {"name": e.name, "distribution": e.distribution, "description": e.description}
+                for e in sorted(available(kind).values(), key=lambda e: e.name)
+            ]
+            for kind in GROUPS
+        }
+    for warning in caught:
+        print(f"qdframe: warning: {warning.message}", file=sys.stderr)
+    if args.json is not None:
+        text = json.dumps(listing, indent=1)
+        if args.json == "-":
+            print(text)
+        else:
+            _writable("--json", args.json)
+            Path(args.json).write_text(text + "\n")
+        return 0
+    for kind, entries in listing.items():
+        print(f"{kind}:")
+        width = max((len(e["name"]) for e in entries), default=0)
+        for e in entries:
+            print(f"  {e['name']:<{width}}  [{e['distribution']}]  {e['description']}")
+    return 0
+
+
+def _solve(args: argparse.Namespace) -> int:
+    from .descent import load_model, solve
+
+    for flag in ("json", "plot"):
+        if getattr(args, flag):
+            _writable(f"--{flag}", getattr(args, flag))
+    overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT}
+    model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
+    show_progress = not args.quiet and sys.stderr.isatty()
+    result = solve(
+        model,
+        nodes=args.nodes,
+        direction=args.direction,
+        line_search=args.line_search,
+        max_iter=args.max_iter,
+        tol=args.tol,
+        delta=args.delta,
+        eps=args.eps,
+        gamma_max=args.gamma_max,
+        progress=_progress_printer() if show_progress else None,
+    )
+    if show_progress:
+        print(file=sys.stderr)
+    if args.json:
+        result.to_json(args.json)
+    if args.plot:
+        from .plotting import plot_result
+
+        plot_result(result, args.plot)
+    if not args.quiet:
+        print(result.summary())
+    return 1 if result.status == "failed" else 0
+
+
+def _progress_printer():
+    def show(record) -> None:
+        print(
+            f"\riteration {record.iteration:5d}   objective {record.objective:.3e}   "
+            f"I {record.I:.3e}   step {record.step:.2e}",
+            end="",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return show
+
+
+def _writable(field: str, path: str) -> None:
+    parent = Path(path).expanduser().resolve().parent
+    if Path(path).is_dir() or not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise InputError(field, "a file path in an existing, writable directory", path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
