@@ -83,7 +83,7 @@ def min_norm_point(center: np.ndarray, generators: np.ndarray, mask: np.ndarray)
     in the unit simplex over the active entries. G = 0 returns the center itself.
 
     Raises :class:`~qdframe.errors.InputError` (a ValueError) naming the argument for
-    wrong shapes, non-finite values or an empty group.
+    wrong shapes, a non-boolean mask, non-finite values or an empty group.
     """
     center, generators, mask = _validate(center, generators, mask)
     rows, groups, width, _ = generators.shape
@@ -92,17 +92,22 @@ def min_norm_point(center: np.ndarray, generators: np.ndarray, mask: np.ndarray)
         return center.copy(), weights
     generators = np.where(mask[..., None], generators, 0.0)
 
+    # Internally the batch axis is last, so that every operation runs over long
+    # contiguous vectors: c (d, B), a (G, m, d, B), active (G, m, B).
     scale = _row_scale(center, generators)
-    c = center / scale[:, None]
-    a = generators / scale[:, None, None, None]
+    c = np.ascontiguousarray((center / scale[:, None]).T)
+    a = np.ascontiguousarray((generators / scale[:, None, None, None]).transpose(1, 2, 3, 0))
+    active = np.ascontiguousarray(mask.transpose(1, 2, 0))
 
     fixed = (mask.sum(axis=2) == 1).all(axis=0)  # groups that are a single point in every row
-    weights[:, fixed] = mask[:, fixed]
-    c = c + np.einsum("bgp,bgpd->bd", weights[:, fixed], a[:, fixed])
+    lam = np.zeros((groups, width, rows))
+    lam[fixed] = active[fixed]
+    c = c + np.einsum("gpb,gpdb->db", lam[fixed], a[fixed])
     live = np.flatnonzero(~fixed)
     if live.size:
-        weights[:, live] = _solve_scaled(c, a[:, live], mask[:, live])
+        lam[live] = _solve_scaled(c, a[live], active[live])
 
+    weights = np.ascontiguousarray(lam.transpose(2, 0, 1))
     points = center + np.einsum("bgp,bgpd->bd", weights, generators)
     return points, weights
 
@@ -152,18 +157,20 @@ def _row_scale(center: np.ndarray, generators: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ the scaled problem
+# From here on: c (d, B), a (G, m, d, B) with inactive generators 0, active and
+# weights λ (G, m, B), points y (d, B).
 
 
-def _solve_scaled(c: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Optimal weights (B, G, m) of the row-normalized problem (inactive generators are 0)."""
-    patterns = _support_patterns(mask.any(axis=0), budget=c.shape[1], cap=PATTERN_CAP)
+def _solve_scaled(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Optimal weights (G, m, B) of the row-normalized problem."""
+    patterns = _support_patterns(active.any(axis=2), budget=c.shape[0], cap=PATTERN_CAP)
     if patterns is None:
-        return _iterate_and_polish(c, a, mask)
-    best = _Incumbent.empty(a.shape[:3])
+        return _iterate_and_polish(c, a, active)
+    best = _Incumbent.empty(active.shape)
     for pattern in patterns:
-        lam, support, valid = _pattern_candidate(c, a, mask, pattern)
-        best.offer(c, a, mask, lam, support, valid)
-    return _cleaned(best.weights, mask)
+        lam, y, support, valid = _pattern_candidate(c, a, active, pattern)
+        best.offer(a, active, lam, y, support, valid)
+    return _cleaned(best.weights, active)
 
 
 def _support_patterns(active: np.ndarray, budget: int, cap: int) -> list[Pattern] | None:
@@ -190,35 +197,36 @@ def _support_patterns(active: np.ndarray, budget: int, cap: int) -> list[Pattern
 
 
 def _pattern_candidate(
-    c: np.ndarray, a: np.ndarray, mask: np.ndarray, pattern: Pattern
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    c: np.ndarray, a: np.ndarray, active: np.ndarray, pattern: Pattern
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Minimizer on the affine hull of one support pattern, for all rows at once.
 
-    Returns the weights (B, G, m), the pattern's support (G, m) and the rows (B,) where
-    the candidate is valid: the pattern uses only active entries, its directions are
-    independent and the weights are nonnegative.
+    Returns the weights (G, m, B), the point (d, B), the pattern's support (G, m) and
+    the rows (B,) where the candidate is valid: the pattern uses only active entries,
+    its directions are independent and the weights are nonnegative.
     """
-    rows, groups, width, _ = a.shape
+    groups, width, _, rows = a.shape
     group_index = np.arange(groups)
     base = np.array([subset[0] for subset in pattern])
     support = np.zeros((groups, width), dtype=bool)
     for g, subset in enumerate(pattern):
         support[g, list(subset)] = True
-    valid = ~(support & ~mask).any(axis=(1, 2))
+    valid = active[support].all(axis=0)
 
-    lam = np.zeros((rows, groups, width))
-    lam[:, group_index, base] = 1.0
+    lam = np.zeros((groups, width, rows))
+    lam[group_index, base] = 1.0
+    y = c + a[group_index, base].sum(axis=0)
     free_g = np.array([g for g, subset in enumerate(pattern) for _ in subset[1:]], dtype=int)
     free_p = np.array([p for subset in pattern for p in subset[1:]], dtype=int)
     if free_g.size:
-        y0 = c + a[:, group_index, base].sum(axis=1)
-        directions = a[:, free_g, free_p] - a[:, free_g, base[free_g]]  # (B, k, d)
-        mu, dependent = _affine_least_squares(y0, directions)
-        lam[:, free_g, free_p] = mu
+        directions = a[free_g, free_p] - a[free_g, base[free_g]]  # (k, d, B)
+        mu, dependent = _affine_least_squares(y, directions)
+        y = y + np.einsum("kb,kdb->db", mu, directions)
+        lam[free_g, free_p] = mu
         for g in np.unique(free_g):
-            lam[:, g, base[g]] -= mu[:, free_g == g].sum(axis=1)
-        valid &= ~dependent & (lam[:, support] >= -_FEASIBILITY_TOL).all(axis=1)
-    return lam, support, valid
+            lam[g, base[g]] -= mu[free_g == g].sum(axis=0)
+        valid &= ~dependent & (lam[support] >= -_FEASIBILITY_TOL).all(axis=0)
+    return lam, y, support, valid
 
 
 def _affine_least_squares(
@@ -226,34 +234,30 @@ def _affine_least_squares(
 ) -> tuple[np.ndarray, np.ndarray]:
     """μ minimizing ‖y0 + Σ_j μ_j directions_j‖ for every row, by a batched QR.
 
-    y0: (B, d); directions: (B, k, d); present: optional (B, k) bool — absent
-    columns get μ = 0. Numerically dependent columns are dropped as well (μ = 0) and
-    reported: returns μ (B, k) and a (B,) flag "some present column was dependent".
+    y0: (d, B); directions: (k, d, B); present: optional (k, B) bool — absent columns
+    get μ = 0. Numerically dependent columns are dropped as well (μ = 0) and
+    reported: returns μ (k, B) and a (B,) flag "some present column was dependent".
     """
-    rows, count, _ = directions.shape
-    if present is None:
-        present = np.ones((rows, count), dtype=bool)
+    count, _, rows = directions.shape
     q = np.zeros_like(directions)  # orthonormal columns (0 for dropped ones)
-    r = np.zeros((rows, count, count))
+    r = np.zeros((count, count, rows))  # upper triangular factor
     dependent = np.zeros(rows, dtype=bool)
     for j in range(count):
-        v = directions[:, j] * present[:, j, None]
+        v = directions[j] if present is None else directions[j] * present[j]
         for _ in range(2):  # classical Gram–Schmidt, twice
-            coefficients = np.einsum("bid,bd->bi", q[:, :j], v)
-            v = v - np.einsum("bi,bid->bd", coefficients, q[:, :j])
-            r[:, :j, j] += coefficients
-        residual = np.sqrt(np.einsum("bd,bd->b", v, v))
-        length = np.sqrt(np.einsum("bd,bd->b", directions[:, j], directions[:, j]))
-        drop = residual <= _RANK_RTOL * length + _RANK_ATOL
-        dependent |= drop & present[:, j]
-        keep = ~drop
-        q[:, j] = np.where(keep[:, None], v / np.where(keep, residual, 1.0)[:, None], 0.0)
-        r[:, j, j] = np.where(keep, residual, 1.0)
-        r[:, :j, j] *= keep[:, None]
-    rhs = -np.einsum("bkd,bd->bk", q, y0)
-    mu = np.zeros((rows, count))
+            coefficients = np.einsum("idb,db->ib", q[:j], v)
+            v = v - np.einsum("ib,idb->db", coefficients, q[:j])
+            r[:j, j] += coefficients
+        residual = np.sqrt(np.einsum("db,db->b", v, v))
+        length = np.sqrt(np.einsum("db,db->b", directions[j], directions[j]))
+        keep = residual > _RANK_RTOL * length + _RANK_ATOL
+        dependent |= ~keep if present is None else ~keep & present[j]
+        q[j] = v * np.where(keep, 1.0 / np.where(keep, residual, 1.0), 0.0)
+        r[j, j] = np.where(keep, residual, 1.0)
+    rhs = -np.einsum("kdb,db->kb", q, y0)
+    mu = np.zeros((count, rows))
     for j in reversed(range(count)):  # back substitution R μ = −Qᵀ y0
-        mu[:, j] = (rhs[:, j] - np.einsum("bi,bi->b", r[:, j, j + 1 :], mu[:, j + 1 :])) / r[:, j, j]
+        mu[j] = (rhs[j] - np.einsum("ib,ib->b", r[j, j + 1 :], mu[j + 1 :])) / r[j, j]
     return mu, dependent
 
 
@@ -267,117 +271,112 @@ class _Incumbent:
 
     @classmethod
     def empty(cls, shape: tuple[int, ...]) -> "_Incumbent":
-        rows = shape[0]
+        rows = shape[-1]
         return cls(np.zeros(shape), np.full(rows, np.inf), np.zeros(rows, dtype=bool))
 
     def offer(
-        self,
-        c: np.ndarray,
-        a: np.ndarray,
-        mask: np.ndarray,
-        lam: np.ndarray,
-        support: np.ndarray,
-        valid: np.ndarray,
+        self, a: np.ndarray, active: np.ndarray, lam: np.ndarray, y: np.ndarray, support: np.ndarray, valid: np.ndarray
     ) -> None:
-        objective, violation = _objective_and_violation(c, a, mask, lam, support)
-        optimal = violation <= _KKT_TOL
+        """Candidate weights λ with point y = c + Σ λ a and support (G, m) or (G, m, B)."""
+        objective = np.einsum("db,db->b", y, y)
+        optimal = _kkt_violation(a, active, y, support) <= _KKT_TOL
         better = valid & ((optimal & ~self.optimal) | ((optimal == self.optimal) & (objective < self.objective)))
-        self.weights[better] = lam[better]
-        self.objective[better] = objective[better]
-        self.optimal[better] = optimal[better]
+        np.copyto(self.weights, lam, where=better)
+        np.copyto(self.objective, objective, where=better)
+        np.copyto(self.optimal, optimal, where=better)
 
 
-def _objective_and_violation(
-    c: np.ndarray, a: np.ndarray, mask: np.ndarray, lam: np.ndarray, support: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """‖y‖² and the KKT violation max_g (max_{p∈S_g} <a_gp,y> − min_{q active} <a_gq,y>)."""
-    y = c + np.einsum("bgp,bgpd->bd", lam, a)
-    values = np.einsum("bgpd,bd->bgp", a, y)
-    lowest = np.where(mask, values, np.inf).min(axis=2)
-    highest = np.where(support, values, -np.inf).max(axis=2)
-    return np.einsum("bd,bd->b", y, y), (highest - lowest).max(axis=1)
+def _kkt_violation(a: np.ndarray, active: np.ndarray, y: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """max_g (max_{p ∈ S_g} <a_gp, y> − min_{q active} <a_gq, y>) for every row: (B,)."""
+    values = np.einsum("gpdb,db->gpb", a, y)
+    if support.ndim == 2:
+        support = support[..., None]
+    lowest = np.where(active, values, np.inf).min(axis=1)
+    highest = np.where(support, values, -np.inf).max(axis=1)
+    return (highest - lowest).max(axis=0)
 
 
-def _cleaned(lam: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Clip round-off negatives, zero masked entries and renormalize every group to sum 1."""
-    lam = np.where(mask, np.maximum(lam, 0.0), 0.0)
-    return lam / lam.sum(axis=2, keepdims=True)
+def _cleaned(lam: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Clip round-off negatives, zero inactive entries and renormalize every group to sum 1."""
+    lam = np.where(active, np.maximum(lam, 0.0), 0.0)
+    return lam / lam.sum(axis=1, keepdims=True)
 
 
 # ------------------------------------------------------------ fallback: iterate + polish
 
 
-def _iterate_and_polish(c: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Too many patterns: accelerated projected gradient, then an exact solve on its support."""
-    lam = _accelerated_projected_gradient(c, a, mask)
+def _iterate_and_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Too many patterns: accelerated projected gradient, then exact solves on its support."""
+    lam = _accelerated_projected_gradient(c, a, active)
+    rows = lam.shape[-1]
     best = _Incumbent.empty(lam.shape)
-    best.offer(c, a, mask, lam, lam > 0.0, np.ones(lam.shape[0], dtype=bool))
+    best.offer(a, active, lam, _point(c, a, lam), lam > 0.0, np.ones(rows, dtype=bool))
     for threshold in _POLISH_THRESHOLDS:
-        support = mask & (lam > threshold * lam.max(axis=2, keepdims=True))
+        support = active & (lam > threshold * lam.max(axis=1, keepdims=True))
         polished = _solve_on_support(c, a, support)
-        feasible = (polished >= -_FEASIBILITY_TOL).all(axis=(1, 2))
-        best.offer(c, a, mask, polished, support, feasible)
-    return _cleaned(best.weights, mask)
+        feasible = (polished >= -_FEASIBILITY_TOL).all(axis=(0, 1))
+        best.offer(a, active, polished, _point(c, a, polished), support, feasible)
+    return _cleaned(best.weights, active)
+
+
+def _point(c: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    return c + np.einsum("gpb,gpdb->db", lam, a)
 
 
 def _solve_on_support(c: np.ndarray, a: np.ndarray, support: np.ndarray) -> np.ndarray:
-    """Least-squares weights on a per-row support (B, G, m); dependent directions are dropped."""
-    rows, groups, width, dim = a.shape
-    base = np.argmax(support, axis=2)  # a supported entry of every group
-    row_index = np.arange(rows)[:, None]
-    base_vectors = a[row_index, np.arange(groups), base]  # (B, G, d)
-    y0 = c + base_vectors.sum(axis=1)
-    directions = (a - base_vectors[:, :, None]).reshape(rows, groups * width, dim)
-    is_base = np.arange(width) == base[..., None]
-    mu, _ = _affine_least_squares(y0, directions, (support & ~is_base).reshape(rows, -1))
-    lam = mu.reshape(rows, groups, width)
-    lam[is_base] = 1.0 - lam.sum(axis=2).ravel()
-    return lam
+    """Least-squares weights (G, m, B) on a per-row support; dependent directions are dropped."""
+    groups, width, dim, rows = a.shape
+    base = np.argmax(support, axis=1)  # (G, B): a supported entry of every group
+    base_vectors = np.take_along_axis(a, base[:, None, None, :], axis=1)  # (G, 1, d, B)
+    y0 = c + base_vectors.sum(axis=(0, 1))
+    directions = (a - base_vectors).reshape(groups * width, dim, rows)
+    is_base = np.arange(width)[:, None] == base[:, None, :]  # (G, m, B)
+    mu, _ = _affine_least_squares(y0, directions, (support & ~is_base).reshape(groups * width, rows))
+    lam = mu.reshape(groups, width, rows)
+    return np.where(is_base, 1.0 - lam.sum(axis=1, keepdims=True), lam)
 
 
-def _accelerated_projected_gradient(c: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """FISTA with adaptive restart on λ; feasible weights (B, G, m) close to optimal."""
-    count = mask.sum(axis=2, keepdims=True)
-    mean = a.sum(axis=2) / count  # shifting a group by a constant leaves the problem unchanged
-    c = c + mean.sum(axis=1)
-    a = (a - mean[:, :, None]) * mask[..., None]
-    lipschitz = np.maximum(np.einsum("bgpd,bgpd->b", a, a), 1e-300)[:, None, None]
+def _accelerated_projected_gradient(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """FISTA with adaptive restart on λ; feasible weights (G, m, B) close to optimal."""
+    count = active.sum(axis=1, keepdims=True)
+    mean = a.sum(axis=1) / count  # (G, d, B); moving a group by a constant changes nothing
+    c = c + mean.sum(axis=0)
+    a = (a - mean[:, None]) * active[:, :, None]
+    lipschitz = np.maximum(np.einsum("gpdb,gpdb->b", a, a), 1e-300)
 
-    lam = mask / count
+    lam = active / count
     extrapolated = lam
-    momentum = np.ones(lam.shape[0])
+    momentum = np.ones(lam.shape[-1])
     for iteration in range(_FALLBACK_ITERATIONS):
-        y = c + np.einsum("bgp,bgpd->bd", extrapolated, a)
-        gradient = np.einsum("bgpd,bd->bgp", a, y)
-        new = _project_to_simplices(extrapolated - gradient / lipschitz, mask)
-        restart = np.einsum("bgp,bgp->b", gradient, new - lam) > 0.0
+        gradient = np.einsum("gpdb,db->gpb", a, _point(c, a, extrapolated))
+        new = _project_to_simplices(extrapolated - gradient / lipschitz, active)
+        restart = np.einsum("gpb,gpb->b", gradient, new - lam) > 0.0
         following = (1.0 + np.sqrt(1.0 + 4.0 * momentum**2)) / 2.0
         beta = np.where(restart, 0.0, (momentum - 1.0) / following)
         momentum = np.where(restart, 1.0, following)
-        extrapolated = new + beta[:, None, None] * (new - lam)
+        extrapolated = new + beta * (new - lam)
         lam = new
-        if iteration % 50 == 49 and _duality_gap(c, a, mask, lam).max() <= _FALLBACK_GAP:
+        if iteration % 50 == 49 and _duality_gap(c, a, active, lam).max() <= _FALLBACK_GAP:
             break
     return lam
 
 
-def _duality_gap(c: np.ndarray, a: np.ndarray, mask: np.ndarray, lam: np.ndarray) -> np.ndarray:
+def _duality_gap(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """Frank–Wolfe gap Σ_g (Σ_p λ_gp <a_gp,y> − min_q <a_gq,y>) ≥ ½‖y‖² − ½‖y*‖²."""
-    y = c + np.einsum("bgp,bgpd->bd", lam, a)
-    values = np.einsum("bgpd,bd->bgp", a, y)
-    lowest = np.where(mask, values, np.inf).min(axis=2)
-    return ((lam * values).sum(axis=2) - lowest).sum(axis=1)
+    values = np.einsum("gpdb,db->gpb", a, _point(c, a, lam))
+    lowest = np.where(active, values, np.inf).min(axis=1)
+    return ((lam * values).sum(axis=1) - lowest).sum(axis=0)
 
 
-def _project_to_simplices(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Euclidean projection of every v[b, g] onto the unit simplex over its active entries."""
-    width = v.shape[-1]
-    values = np.where(mask, v, -np.inf)
-    ordered = -np.sort(-values, axis=-1)
+def _project_to_simplices(v: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Euclidean projection of every v[g, :, b] onto the unit simplex over its active entries."""
+    width = v.shape[1]
+    values = np.where(active, v, -np.inf)
+    ordered = -np.sort(-values, axis=1)
     finite = np.isfinite(ordered)
-    sums = np.cumsum(np.where(finite, ordered, 0.0), axis=-1)
-    positions = np.arange(1, width + 1)
+    sums = np.cumsum(np.where(finite, ordered, 0.0), axis=1)
+    positions = np.arange(1, width + 1)[:, None]
     positive = finite & (ordered - (sums - 1.0) / positions > 0.0)
-    last = width - 1 - np.argmax(positive[..., ::-1], axis=-1)
-    threshold = (np.take_along_axis(sums, last[..., None], axis=-1) - 1.0) / (last[..., None] + 1.0)
-    return np.where(mask, np.maximum(values - threshold, 0.0), 0.0)
+    last = width - 1 - np.argmax(positive[:, ::-1], axis=1)  # (G, B)
+    threshold = (np.take_along_axis(sums, last[:, None], axis=1) - 1.0) / (last[:, None] + 1.0)
+    return np.where(active, np.maximum(values - threshold, 0.0), 0.0)
