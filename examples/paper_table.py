@@ -17,11 +17,16 @@ TARGETS = {"paper-7.1": (1e-3, 5e-3), "paper-7.2": (5e-3, 5e-3)}
 PAPER_ITERATIONS = {"paper-7.1": 37, "paper-7.2": 15}
 
 
-def first_reached(result: qdframe.SolveResult, objective_bound: float) -> int | None:
+def first_reached(result: qdframe.SolveResult, objective_bound: float, boundary_bound: float) -> int | None:
+    """The first iteration with objective and boundary error both within the paper's figures."""
     for record in result.history:
-        if record.objective <= objective_bound:
+        if record.objective <= objective_bound and record.boundary_error <= boundary_bound:
             return record.iteration
     return None
+
+
+def _maybe(value: float | None) -> str:
+    return "—" if value is None else f"{value:.1e}"
 
 
 def main() -> None:
@@ -30,17 +35,17 @@ def main() -> None:
     parser.add_argument("--line-search", default="golden")
     parser.add_argument("--direction", default="native")
     args = parser.parse_args()
-    print("| example | N | paper's iterations | first iteration at the paper's objective | status | iterations "
-          "| objective | boundary error | error vs known solution | time (s) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for name, (objective_bound, _) in TARGETS.items():
+    print("| example | N | paper's iterations | first iteration at the paper's accuracy | status | iterations "
+          "| objective | boundary error | inclusion residual | error vs a known solution | time (s) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, (objective_bound, boundary_bound) in TARGETS.items():
         for nodes in args.nodes:
             result = qdframe.solve(name, nodes=nodes, direction=args.direction, line_search=args.line_search)
-            reached = first_reached(result, objective_bound)
+            reached = first_reached(result, objective_bound, boundary_bound)
             print(
                 f"| {name} | {nodes} | {PAPER_ITERATIONS[name]} | {reached} (≤ {objective_bound:g}) | {result.status} "
                 f"| {result.iterations} | {result.objective:.2e} | {result.boundary_error:.1e} "
-                f"| {result.solution_error:.1e} | {result.wall_time_s:.2f} |"
+                f"| {result.inclusion_residual:.1e} | {_maybe(result.solution_error)} | {result.wall_time_s:.2f} |"
             )
 
 

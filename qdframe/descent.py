@@ -100,7 +100,7 @@ def descend(
     clock = time.perf_counter()
     xi = functional.initial_point() if start is None else np.array(start, dtype=float)
     terms = functional.terms(xi)
-    history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), 0.0)]
+    history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), functional.boundary_error(xi), 0.0)]
     status, message = "max_iter", f"{options.max_iter} iterations spent"
     weights = functional.weights
     try:
@@ -133,6 +133,7 @@ def descend(
                 gamma,
                 float(np.sqrt(weights @ np.sum(step**2, axis=1))),
                 deviation,
+                functional.boundary_error(xi),
                 time.perf_counter() - clock,
             )
             history.append(record)

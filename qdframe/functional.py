@@ -132,15 +132,19 @@ class Functional:
     def objective(self, xi: np.ndarray) -> float:
         return self.terms(xi).objective
 
+    def boundary_error(self, xi: np.ndarray) -> float:
+        """max_j |x0_j + ∫z_j − xT_j| over the fixed end coordinates (0 if J is empty)."""
+        end = self._end_residual(self.split(xi)[1])
+        return float(np.max(np.abs(end))) if end.size else 0.0
+
     def residuals(self, xi: np.ndarray) -> Residuals:
         x, z = self.split(xi)
-        end = self._end_residual(z)
         h = np.max([np.max(state.h) for state in self._block_states(x, z)])
         surface_error = None
         if self.surface is not None:
             surface_error = float(np.max(np.abs(self._surface(x)[0])))
         return Residuals(
-            boundary_error=float(np.max(np.abs(end))) if end.size else 0.0,
+            boundary_error=self.boundary_error(xi),
             inclusion_residual=float(h),
             surface_error=surface_error,
             consistency_error=float(np.max(np.abs(self._consistency(x, z)))),

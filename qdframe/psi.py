@@ -32,7 +32,7 @@ def maximize_on_sphere(
     k: int,
     samples: int = 128,
     sweeps: int | None = None,
-    iterations: int = 60,
+    iterations: int = 40,
 ) -> np.ndarray:
     """argmax over ψ ∈ S_k of objective, for every node at once.
 

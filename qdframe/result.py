@@ -22,6 +22,7 @@ class IterationRecord:
     step: float  # γ of the step that led here (0 for the first iterate)
     direction_norm: float  # L² norm of the direction G that led here
     deviation: float  # max_k ‖v̄_k + w̄_k‖ of that direction
+    boundary_error: float  # max_j |x0_j + ∫z_j − xT_j| after the step
     time_s: float  # seconds since the solve started
 
 

@@ -136,3 +136,11 @@ def test_bad_T_raises_input_error(T):
 def test_input_error_is_a_value_error():
     with pytest.raises(ValueError):
         Grid(1.0, 1)
+
+
+@pytest.mark.xfail(strict=True, reason="library bug: Grid.cumulative truncates integer input (out = zeros_like(z) keeps int dtype)")
+def test_cumulative_of_integer_array_is_not_truncated():
+    grid = Grid(1.0, 3)
+    C = dense_cumulative_matrix(3, 1.0)
+    z = np.array([1, 2, 3])
+    np.testing.assert_allclose(grid.cumulative(z), C @ z.astype(float), rtol=1e-14)

@@ -85,37 +85,30 @@ def min_norm_point(center: np.ndarray, generators: np.ndarray, mask: np.ndarray)
     Raises :class:`~qdframe.errors.InputError` (a ValueError) naming the argument for
     wrong shapes, a non-boolean mask, non-finite values or an empty group.
     """
-    center, generators, mask = _validate(center, generators, mask)
+    center, generators, mask = _validate_shapes(center, generators, mask)
     rows, groups, width, _ = generators.shape
-    weights = np.zeros((rows, groups, width))
     if groups == 0 or rows == 0:
-        return center.copy(), weights
-    generators = np.where(mask[..., None], generators, 0.0)
+        return center.copy(), np.zeros((rows, groups, width))
 
     # Internally the batch axis is last, so that every operation runs over long
-    # contiguous vectors: c (d, B), a (G, m, d, B), active (G, m, B).
-    scale = _row_scale(center, generators)
-    c = np.ascontiguousarray((center / scale[:, None]).T)
-    a = np.ascontiguousarray((generators / scale[:, None, None, None]).transpose(1, 2, 3, 0))
-    active = np.ascontiguousarray(mask.transpose(1, 2, 0))
-
-    fixed = (mask.sum(axis=2) == 1).all(axis=0)  # groups that are a single point in every row
+    # contiguous vectors: c (d, B), a (G, m, d, B), active and λ (G, m, B).
+    c, a, active, scale = _scaled_batch_last(center, generators, mask)
     lam = np.zeros((groups, width, rows))
+    fixed = (active.sum(axis=1) == 1).all(axis=1)  # groups that are a single point in every row
     lam[fixed] = active[fixed]
-    c = c + np.einsum("gpb,gpdb->db", lam[fixed], a[fixed])
     live = np.flatnonzero(~fixed)
     if live.size:
-        lam[live] = _solve_scaled(c, a[live], active[live])
+        folded = c + np.einsum("gpb,gpdb->db", lam[fixed], a[fixed])
+        lam[live] = _solve_scaled(folded, a[live], active[live])
 
-    weights = np.ascontiguousarray(lam.transpose(2, 0, 1))
-    points = center + np.einsum("bgp,bgpd->bd", weights, generators)
-    return points, weights
+    points = (c + np.einsum("gpb,gpdb->db", lam, a)) * scale  # exact: scale is a power of 2
+    return np.ascontiguousarray(points.T), np.ascontiguousarray(lam.transpose(2, 0, 1))
 
 
 # ----------------------------------------------------------------------------- input
 
 
-def _validate(center: object, generators: object, mask: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _validate_shapes(center: object, generators: object, mask: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     center = _real_array("center", center)
     generators = _real_array("generators", generators)
     mask = np.asarray(mask)
@@ -128,15 +121,35 @@ def _validate(center: object, generators: object, mask: object) -> tuple[np.ndar
         raise InputError("mask", f"an array of shape {generators.shape[:3]}", mask.shape)
     if mask.dtype != bool:
         raise InputError("mask", "a boolean array", str(mask.dtype))
-    if not np.isfinite(center).all():
-        raise InputError("center", "finite values")
-    if not np.isfinite(generators[mask]).all():
-        raise InputError("generators", "finite values at the active (mask True) entries")
-    empty = ~mask.any(axis=2)
-    if empty.any():
-        row, group = np.argwhere(empty)[0]
-        raise InputError("mask", "at least one True entry in every group of every row", f"row {row}, group {group} empty")
     return center, generators, mask
+
+
+def _scaled_batch_last(
+    center: np.ndarray, generators: np.ndarray, mask: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Batch-last copies divided row-wise by a power of two ≥ the largest |entry|.
+
+    Returns c (d, B), a (G, m, d, B) with inactive generators set to 0, active (G, m, B)
+    and the scale (B,). Checks finiteness and that no group is empty.
+    """
+    active = np.ascontiguousarray(mask.transpose(1, 2, 0))
+    empty = ~active.any(axis=1)
+    if empty.any():
+        group, row = np.argwhere(empty)[0]
+        raise InputError("mask", "at least one True entry in every group of every row", f"row {row}, group {group} empty")
+    c = np.ascontiguousarray(center.T)
+    if not np.isfinite(c).all():
+        raise InputError("center", "finite values")
+    a = np.zeros(generators.shape[1:] + generators.shape[:1])
+    np.copyto(a, generators.transpose(1, 2, 3, 0), where=active[:, :, None])
+    if not np.isfinite(a).all():
+        raise InputError("generators", "finite values at the active (mask True) entries")
+    largest = np.maximum(np.abs(c).max(axis=0, initial=0.0), np.abs(a).max(axis=(0, 1, 2), initial=0.0))
+    _, exponent = np.frexp(np.where(largest > 0.0, largest, 1.0))
+    scale = np.ldexp(1.0, exponent)
+    c /= scale
+    a /= scale
+    return c, a, active, scale
 
 
 def _real_array(name: str, value: object) -> np.ndarray:
@@ -144,16 +157,6 @@ def _real_array(name: str, value: object) -> np.ndarray:
     if array.dtype.kind not in "biuf":
         raise InputError(name, "a real numeric array", str(array.dtype))
     return array.astype(float, copy=False)
-
-
-def _row_scale(center: np.ndarray, generators: np.ndarray) -> np.ndarray:
-    """Largest absolute entry of each row (1 for an all-zero row)."""
-    rows = center.shape[0]
-    largest = np.maximum(
-        np.abs(center).max(axis=1, initial=0.0),
-        np.abs(generators.reshape(rows, -1)).max(axis=1, initial=0.0),
-    )
-    return np.where(largest > 0.0, largest, 1.0)
 
 
 # ------------------------------------------------------------------ the scaled problem
