@@ -21,7 +21,9 @@ class Grid:
     def __post_init__(self) -> None:
         if isinstance(self.nodes, bool) or not isinstance(self.nodes, (int, np.integer)) or self.nodes < 2:
             raise InputError("nodes", "an integer ≥ 2", self.nodes)
-        if not (np.isfinite(self.T) and self.T > 0):
+        if isinstance(self.T, bool) or not isinstance(self.T, (int, float, np.integer, np.floating)) or not (
+            np.isfinite(self.T) and self.T > 0
+        ):
             raise InputError("T", "a positive finite number", self.T)
         t = np.linspace(0.0, self.T, self.nodes)
         w = np.full(self.nodes, self.step)
@@ -39,6 +41,7 @@ class Grid:
 
     def cumulative(self, z: np.ndarray) -> np.ndarray:
         """Z_k = ∫_0^{t_k} z by the cumulative trapezoid rule (Z_0 = 0), shape of z."""
+        z = np.asarray(z, dtype=float)
         out = np.zeros_like(z)
         np.cumsum(0.5 * self.step * (z[1:] + z[:-1]), axis=0, out=out[1:])
         return out
@@ -46,6 +49,7 @@ class Grid:
     def cumulative_adjoint(self, y: np.ndarray) -> np.ndarray:
         """Cᵀy for the matrix C of :meth:`cumulative` (Z = C z), without forming C."""
         h = self.step
+        y = np.asarray(y, dtype=float)
         tail = np.zeros_like(y)  # tail_m = Σ_{k>m} y_k
         tail[:-1] = np.cumsum(y[::-1], axis=0)[::-1][1:]
         out = 0.5 * h * y + h * tail

@@ -138,7 +138,6 @@ def test_input_error_is_a_value_error():
         Grid(1.0, 1)
 
 
-@pytest.mark.xfail(strict=True, reason="library bug: Grid.cumulative truncates integer input (out = zeros_like(z) keeps int dtype)")
 def test_cumulative_of_integer_array_is_not_truncated():
     grid = Grid(1.0, 3)
     C = dense_cumulative_matrix(3, 1.0)

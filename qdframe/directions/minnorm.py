@@ -12,9 +12,11 @@ need not be.
 
 Method (active-set enumeration, vectorized over the batch)
 -----------------------------------------------------------
-1. Every row is divided by its largest absolute entry, so all tolerances below
-   are relative and the result is scale invariant; the point is computed at the
-   end from the returned weights and the original data.
+1. Every row is divided by the power of two just above its largest absolute
+   entry, so all tolerances below are relative and the result is scale
+   invariant; the point is computed at the end from the returned weights (the
+   power-of-two rescaling is exact). Internally the batch axis is last, so that
+   every NumPy operation runs over long contiguous vectors.
 2. A group with exactly one active entry in every row is folded into the center
    (its weight is 1 there).
 3. For the remaining groups a *support pattern* picks one nonempty subset S_g of
@@ -63,7 +65,7 @@ PATTERN_CAP = 4096
 """Largest number of support patterns enumerated before the iterative fallback."""
 
 _RANK_RTOL = 1e-10  # a direction counts as dependent below this relative residual
-_RANK_ATOL = 1e-14  # ... or below this absolute residual (rows are scaled to max |entry| = 1)
+_RANK_ATOL = 1e-14  # ... or below this absolute one (scaled rows have |entries| ≤ 1)
 _FEASIBILITY_TOL = 1e-10  # λ ≥ −this counts as feasible
 _KKT_TOL = 1e-9  # absolute tolerance of the optimality check on scaled rows
 _FALLBACK_ITERATIONS = 3000
@@ -137,7 +139,7 @@ def _scaled_batch_last(
     if empty.any():
         group, row = np.argwhere(empty)[0]
         raise InputError("mask", "at least one True entry in every group of every row", f"row {row}, group {group} empty")
-    c = np.ascontiguousarray(center.T)
+    c = np.array(center.T, order="C")  # always a copy: it is scaled in place below
     if not np.isfinite(c).all():
         raise InputError("center", "finite values")
     a = np.zeros(generators.shape[1:] + generators.shape[:1])
