@@ -174,7 +174,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         t=functional.grid.t,
         x=x,
         z=z,
-        u=None,
+        u=functional.controls(xi) if functional.m else None,
         state_names=tuple(model.state_names),
         set_bounds=bounds,
         options={

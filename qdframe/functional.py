@@ -1,8 +1,9 @@
 """The discretized functional I = φ + χ + ω + υ (+ cost) and its quasidifferential.
 
-Unknowns ξ are stored per node as one row [x (n) | z (n)], ξ of shape (N, 2n). The
-value x(t_0) = x0 is known, so it is not an unknown: it is fixed at node 0 and the
-quasidifferential is projected onto the remaining free unknowns.
+Unknowns ξ are stored per node as one row [x (n) | z (n) | u (m)], ξ of shape
+(N, 2n + m), u the model's unknown controls (m = 0 without). The sets' pieces are
+functions of y = (x, u). The value x(t_0) = x0 is known, so it is not an unknown: it is
+fixed at node 0 and the quasidifferential is projected onto the remaining free unknowns.
 
 Terms (paper (3.13), (3.14), (3.14'), (3.17)), with trapezoid weights w_k and the
 cumulative trapezoid Z = ∫_0^t z of :class:`~qdframe.grid.Grid`:
@@ -78,7 +79,9 @@ class Functional:
         self.model = model
         self.grid = grid
         self.n = model.n_states
-        self.dim = 2 * self.n
+        self.m = model.n_controls
+        self.dim = 2 * self.n + self.m
+        self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
         self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
         self.surface = model.surface()
         self.cost = model.cost()
@@ -94,29 +97,41 @@ class Functional:
         return self.grid.weights
 
     def split(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return xi[:, : self.n], xi[:, self.n :]
+        """(x, z), each (N, n)."""
+        return xi[:, : self.n], xi[:, self.n : 2 * self.n]
 
-    def pack(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        xi = np.concatenate([x, z], axis=1).astype(float)
+    def controls(self, xi: np.ndarray) -> np.ndarray:
+        """u, shape (N, m)."""
+        return xi[:, 2 * self.n :]
+
+    def arguments(self, xi: np.ndarray) -> np.ndarray:
+        """y = (x, u), the pieces' argument, shape (N, n + m)."""
+        return xi[:, : self.n] if self.m == 0 else np.concatenate([xi[:, : self.n], xi[:, 2 * self.n :]], axis=1)
+
+    def pack(self, x: np.ndarray, z: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        parts = [x, z] + ([] if self.m == 0 else [np.zeros((x.shape[0], self.m)) if u is None else u])
+        xi = np.concatenate(parts, axis=1).astype(float)
         xi[0, : self.n] = self.model.x0
         return xi
 
     def initial_point(self) -> np.ndarray:
-        x, z = self.model.initial_guess(self.grid.t)
-        shape = (self.grid.nodes, self.n)
-        for label, array in (("x", x), ("z", z)):
-            if np.shape(array) != shape:
+        t = self.grid.t
+        x, z = self.model.initial_guess(t)
+        u = self.model.initial_controls(t)
+        for label, array, width in (("x", x, self.n), ("z", z, self.n), ("u", u, self.m)):
+            if np.shape(array) != (t.size, width):
                 raise ModelOutputError(
-                    f"model {self.model.name!r}: initial_guess {label} has shape {np.shape(array)}, expected {shape}"
+                    f"model {self.model.name!r}: initial {label} has shape {np.shape(array)}, expected {(t.size, width)}"
                 )
-        return self.pack(np.asarray(x, float), np.asarray(z, float))
+        return self.pack(np.asarray(x, float), np.asarray(z, float), np.asarray(u, float))
 
     # ---------------------------------------------------------------- values
     def terms(self, xi: np.ndarray) -> Terms:
         """φ, χ, ω, υ, the cost, I and the objective at ξ."""
         x, z = self.split(xi)
+        y = self.arguments(xi)
         w = self.weights
-        h2 = sum(state.h**2 for state in self._block_states(x, z))
+        h2 = sum(state.h**2 for state in self._block_states(y, z))
         phi = 0.5 * float(w @ h2)
         chi = 0.5 * float(np.sum(self._end_residual(z) ** 2))
         omega = 0.0
@@ -125,7 +140,7 @@ class Functional:
             omega = 0.5 * float(w @ np.sum(e**2, axis=1))
         upsilon = 0.5 * float(w @ np.sum(self._consistency(x, z) ** 2, axis=1))
         total = phi + chi + omega + upsilon
-        cost = float(w @ self._cost_integrand(x)) if self.cost is not None else 0.0
+        cost = float(w @ self._cost_integrand(y)) if self.cost is not None else 0.0
         objective = cost + self.penalty * total if self.cost is not None else total
         return Terms(phi, chi, omega, upsilon, cost, total, objective)
 
@@ -139,7 +154,7 @@ class Functional:
 
     def residuals(self, xi: np.ndarray) -> Residuals:
         x, z = self.split(xi)
-        h = np.max([np.max(state.h) for state in self._block_states(x, z)])
+        h = np.max([np.max(state.h) for state in self._block_states(self.arguments(xi), z)])
         surface_error = None
         if self.surface is not None:
             surface_error = float(np.max(np.abs(self._surface(x)[0])))
@@ -152,14 +167,14 @@ class Functional:
 
     def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
         """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
-        x, _ = self.split(xi)
+        y = self.arguments(xi)
         bounds: list[tuple[np.ndarray, np.ndarray] | None] = []
         for block in self.blocks:
             if block.size != 1:
                 bounds.append(None)
                 continue
-            c_plus = self._support_1d(block, x, +1.0)
-            c_minus = self._support_1d(block, x, -1.0)
+            c_plus = self._support_1d(block, y, +1.0)
+            c_minus = self._support_1d(block, y, -1.0)
             bounds.append((-c_minus, c_plus))
         return bounds
 
@@ -167,6 +182,7 @@ class Functional:
     def quasidifferential(self, xi: np.ndarray, delta: float) -> Quasidifferential:
         """[A_k, B_k] for every node, δ-active pieces, L² metric (paper Section 4)."""
         x, z = self.split(xi)
+        y = self.arguments(xi)
         nodes, n = x.shape
         w = self.weights
         smooth = np.zeros((nodes, self.dim))
@@ -183,20 +199,20 @@ class Functional:
             smooth[:, :n] += np.einsum("ko,kon->kn", e, de)
         sub_groups: list[tuple[np.ndarray, np.ndarray]] = []
         sup_groups: list[tuple[np.ndarray, np.ndarray]] = []
-        for block, state in zip(self.blocks, self._block_states(x, z)):
+        for block, state in zip(self.blocks, self._block_states(y, z)):
             h = state.h
             positive = h > 0
             smooth[:, n + np.asarray(block.coords)] += h[:, None] * state.psi  # h ψ* e_z
             for part in state.min_parts:  # −min g is convex: subdifferential (4.555)
                 mask = _delta_active(-part.values, delta, positive)
-                sub_groups.append((self._embed_x(-h[:, None, None] * part.grads), mask))
+                sub_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
             for part in state.max_parts:  # −max <f, ψ*> is concave: superdifferential (4.5)
                 mask = _delta_active(part.values, delta, positive)
-                sup_groups.append((self._embed_x(-h[:, None, None] * part.grads), mask))
+                sup_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
         sub = _assemble(smooth, sub_groups).scaled(self.penalty)
         sup = _assemble(np.zeros_like(smooth), sup_groups).scaled(self.penalty)
         if self.cost is not None:
-            cost_sub, cost_sup = self._cost_quasidifferential(x, delta)
+            cost_sub, cost_sup = self._cost_quasidifferential(y, delta)
             sub, sup = sub + cost_sub, sup + cost_sup
         return Quasidifferential(_project(sub, self.free), _project(sup, self.free))
 
@@ -209,10 +225,11 @@ class Functional:
     def _consistency(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         return x - self.model.x0 - self.grid.cumulative(z)
 
-    def _embed_x(self, grads: np.ndarray) -> np.ndarray:
-        """Gradients in x (…, n) placed in the x-slots of ξ's row (…, 2n)."""
+    def _embed(self, grads: np.ndarray) -> np.ndarray:
+        """Gradients in y = (x, u) (…, n + m) placed in the x- and u-slots of ξ's row (…, 2n + m)."""
         out = np.zeros(grads.shape[:-1] + (self.dim,))
-        out[..., : self.n] = grads
+        out[..., : self.n] = grads[..., : self.n]
+        out[..., 2 * self.n :] = grads[..., self.n :]
         return out
 
     def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -231,9 +248,9 @@ class Functional:
 
     def _cost_quasidifferential(self, x: np.ndarray, delta: float) -> tuple[SimplexSum, SimplexSum]:
         everywhere = np.ones(x.shape[0], dtype=bool)
-        sub = [(self._embed_x(g), _delta_active(v, delta, everywhere))
+        sub = [(self._embed(g), _delta_active(v, delta, everywhere))
                for v, g in (self._scalar_pieces(fn, x, "cost max-group") for fn in self.cost.max_groups)]  # type: ignore[union-attr]
-        sup = [(self._embed_x(g), _delta_active(-v, delta, everywhere))
+        sup = [(self._embed(g), _delta_active(-v, delta, everywhere))
                for v, g in (self._scalar_pieces(fn, x, "cost min-group") for fn in self.cost.min_groups)]  # type: ignore[union-attr]
         zero = np.zeros((x.shape[0], self.dim))
         return _assemble(zero, sub), _assemble(zero, sup)
@@ -241,21 +258,21 @@ class Functional:
     def _scalar_pieces(self, fn, x: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
         values, grads = fn(x)
         self._check(label, values, (x.shape[0], None))
-        self._check(f"{label} gradient", grads, (x.shape[0], values.shape[1], self.n))
+        self._check(f"{label} gradient", grads, (x.shape[0], values.shape[1], self.args))
         return values, grads
 
     def _max_group(self, block: SetBlock, group, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         f, jac = group.pieces(x)
         label = f"block {block.name or block.coords} max-group {group.name!r}"
         self._check(label, f, (x.shape[0], None, block.size))
-        self._check(f"{label} Jacobian", jac, (x.shape[0], f.shape[1], block.size, self.n))
+        self._check(f"{label} Jacobian", jac, (x.shape[0], f.shape[1], block.size, self.args))
         return f, jac
 
     def _min_group(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         g, grad = group.pieces(x, psi)
         label = f"block {block.name or block.coords} min-group {group.name!r}"
         self._check(label, g, (x.shape[0], None))
-        self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.n))
+        self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
         return g, grad
 
     def _support_1d(self, block: SetBlock, x: np.ndarray, psi: float) -> np.ndarray:

@@ -14,6 +14,9 @@ coordinates (ψ* is searched numerically, Remark 5.1 / Example 7.2). Every piece
 comes with its x-gradient, evaluated for all nodes at once: arrays are (N, ...).
 
 An exact equation z_i = f(x) is the one-piece max-group f (a singleton set).
+
+With unknown controls u (`control_names`, paper Example 7.3) every piece is a function
+of y = (x, u), an array of shape (N, n + m), and its gradients have n + m columns.
 """
 
 from __future__ import annotations
@@ -113,6 +116,7 @@ class InclusionModel(ABC):
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     state_names: ClassVar[tuple[str, ...]] = ()
+    control_names: ClassVar[tuple[str, ...]] = ()  # unknown controls u(t), solved for with x and z
     default_T: ClassVar[float] = 1.0
     default_x0: ClassVar[tuple[float, ...]] = ()
     end_indices: ClassVar[tuple[int, ...]] = ()  # J, zero-based
@@ -143,6 +147,10 @@ class InclusionModel(ABC):
     def n_states(self) -> int:
         return len(self.state_names)
 
+    @property
+    def n_controls(self) -> int:
+        return len(self.control_names)
+
     @abstractmethod
     def blocks(self) -> Sequence[SetBlock]:
         """The blocks of F, covering every state coordinate exactly once."""
@@ -158,6 +166,10 @@ class InclusionModel(ABC):
     def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The first iterate (x, z), each (N, n). Default: x ≡ x0, z ≡ 0."""
         return np.tile(self.x0, (t.size, 1)), np.zeros((t.size, self.n_states))
+
+    def initial_controls(self, t: np.ndarray) -> np.ndarray:
+        """The first iterate of the controls u, (N, m). Default: u ≡ 0."""
+        return np.zeros((t.size, self.n_controls))
 
     def exact_solution(self, t: np.ndarray) -> np.ndarray | None:
         """A known solution x(t) (N, n) for the default boundary data, or None."""
