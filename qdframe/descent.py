@@ -112,8 +112,11 @@ def descend(
                 break
             direction = solver.compute(functional, xi, options.delta)
             deviation = float(np.max(direction.deviation))
-            if deviation <= options.eps:
+            if direction.stationary is None and deviation <= options.eps:
                 status, message = "stationary", f"deviation {deviation:.2e} ≤ ε at every node"
+                break
+            if direction.stationary:
+                status, message = "stationary", f"{solver.name}: no further decrease predicted"
                 break
             step = direction.step
 

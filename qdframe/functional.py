@@ -54,6 +54,18 @@ class Residuals:
     consistency_error: float  # max_k |x_k − x0 − Z_k|
 
 
+@dataclass(frozen=True)
+class DistanceSides:
+    """A block's sides: tuples (ℓ (N,), ∂ℓ/∂y (N, n + m), ∂ℓ/∂z_b = ψ (N, k)); h_b = max(0, max ℓ)."""
+
+    coords: tuple[int, ...]
+    sides: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+    @property
+    def h(self) -> np.ndarray:
+        return np.maximum(0.0, np.max([ell for ell, _, _ in self.sides], axis=0))
+
+
 @dataclass
 class _Piece:
     """One group of pieces at ψ*: values (N, m) and gradients (N, m, n)."""
@@ -215,6 +227,60 @@ class Functional:
             cost_sub, cost_sup = self._cost_quasidifferential(y, delta)
             sub, sup = sub + cost_sub, sup + cost_sup
         return Quasidifferential(_project(sub, self.free), _project(sup, self.free))
+
+    # ------------------------------------------------ residuals and Jacobians
+    def distance_sides(self, xi: np.ndarray) -> list[DistanceSides]:
+        """For every block, h_b = max(0, max_side ℓ_side) with each side's signed ℓ and
+        one element of its generalized Jacobian (the argmax piece of each max-group and
+        the argmin piece of each min-group). One-coordinate blocks have two sides,
+        ψ = +1 and ψ = −1 (the interval's ends); S_k blocks have one, ψ = ψ*."""
+        y, z = self.arguments(xi), self.split(xi)[1]
+        rows = np.arange(y.shape[0])
+        out = []
+        for block in self.blocks:
+            if block.size == 1:
+                psis = [np.ones((y.shape[0], 1)), -np.ones((y.shape[0], 1))]
+            else:
+                psis = [self._state_sphere(block, y, z).psi]
+            sides = []
+            for psi in psis:
+                zb = z[:, list(block.coords)]
+                ell = np.einsum("nk,nk->n", zb, psi)
+                dell_dy = np.zeros((y.shape[0], self.args))
+                for group in block.max_groups:
+                    f, jac = self._max_group(block, group, y)
+                    values = np.einsum("nqk,nk->nq", f, psi)
+                    pick = np.argmax(values, axis=1)
+                    ell -= values[rows, pick]
+                    dell_dy -= np.einsum("nkd,nk->nd", jac[rows, pick], psi)
+                for group in block.min_groups:
+                    g, grad = self._min_group(block, group, y, psi)
+                    pick = np.argmin(g, axis=1)
+                    ell -= g[rows, pick]
+                    dell_dy -= grad[rows, pick]
+                sides.append((ell, dell_dy, psi))
+            out.append(DistanceSides(block.coords, sides))
+        return out
+
+    def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The cost's max-groups and min-groups: lists of (values (N, m), gradients (N, m, n + m))."""
+        y = self.arguments(xi)
+        return (
+            [self._scalar_pieces(fn, y, "cost max-group") for fn in self.cost.max_groups],  # type: ignore[union-attr]
+            [self._scalar_pieces(fn, y, "cost min-group") for fn in self.cost.min_groups],  # type: ignore[union-attr]
+        )
+
+    def surface_values(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """e(x) (N, o) and ∂e/∂x (N, o, n); requires a surface."""
+        return self._surface(self.split(xi)[0])
+
+    def consistency(self, xi: np.ndarray) -> np.ndarray:
+        """x − x0 − ∫_0^t z at every node, (N, n)."""
+        return self._consistency(*self.split(xi))
+
+    def end_residual(self, xi: np.ndarray) -> np.ndarray:
+        """x0_j + ∫_0^T z_j − xT_j for j ∈ J."""
+        return self._end_residual(self.split(xi)[1])
 
     # ---------------------------------------------------------------- pieces
     def _end_residual(self, z: np.ndarray) -> np.ndarray:

@@ -283,6 +283,37 @@ def test_answer_exactly_at_a_vertex_in_a_degenerate_sum():
     np.testing.assert_allclose(weights, [[[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]], atol=1e-15)
 
 
+def tiny_edge_instance():
+    """Rows whose answer (r, 0, 0) lies on an edge of length ε = 2^-k ≪ r (nearly
+    equal generators); all data are exactly representable. Returns the data, the
+    answers and ε per row.
+
+    A vertex of the edge is only ~ε from the answer and its norm differs from the
+    optimum by ~ε², below rounding for ε < 1e-8: comparing norms alone cannot find
+    the answer, the solver needs the optimality condition.
+    """
+    rows, edges = [], []
+    for k, split, r in itertools.product(range(12, 42, 2), (0.125, 0.5, 0.875), (0.75, 1.0, 3.0)):
+        eps = 2.0**-k
+        rows.append([[r, -split * eps, 0.0], [r, (1 - split) * eps, 0.0], [r + 1.0, 0.3, 0.2]])
+        edges.append(eps)
+    generators = np.array(rows)[:, None]
+    expected = np.zeros((len(rows), 3))
+    expected[:, 0] = generators[:, 0, 0, 0]
+    return np.zeros((len(rows), 3)), generators, np.ones((len(rows), 1, 3), bool), expected, np.array(edges)
+
+
+@pytest.mark.parametrize("cap", [minnorm.PATTERN_CAP, 0])
+def test_answer_on_a_tiny_edge(monkeypatch, cap):
+    monkeypatch.setattr(minnorm, "PATTERN_CAP", cap)
+    center, generators, mask, expected, edge = tiny_edge_instance()
+    points, weights = min_norm_point(center, generators, mask)
+    assert_kkt(center, generators, mask, points, weights)
+    error = np.linalg.norm(points - expected, axis=1)
+    assert np.all(error[edge >= 2.0**-26] <= 1e-13)
+    assert np.all(error <= 1e-10)  # the optimality tolerance (1e-11 of the scale) for ε → 0
+
+
 # ---------------------------------------------------------------- iterative fallback
 
 

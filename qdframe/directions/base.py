@@ -31,12 +31,14 @@ class Direction:
     step: G, shape (N, d). deviation: per-node ‖v̄ + w̄‖, the Hausdorff deviation of
     −B_k from A_k (0 where the minimum condition (11.400) holds). slope: the
     directional derivative of the objective along G (formula (11.10)), negative
-    for a descent direction.
+    for a descent direction. stationary: set by solvers whose stationarity test is
+    not the paper's deviation ≤ ε (e.g. gauss-newton).
     """
 
     step: np.ndarray
     deviation: np.ndarray
     slope: float
+    stationary: bool | None = None  # a solver's own stationarity verdict; None: deviation ≤ ε decides
 
 
 class DirectionSolver(ABC):

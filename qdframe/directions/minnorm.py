@@ -68,8 +68,8 @@ _RANK_RTOL = 1e-10  # a direction counts as dependent below this relative residu
 _RANK_ATOL = 1e-14  # ... or below this absolute one (scaled rows have |entries| ≤ 1)
 _FEASIBILITY_TOL = 1e-10  # λ ≥ −this counts as feasible
 _KKT_TOL = 1e-11  # tolerance of the normalized optimality check (a length, scaled rows)
-_FALLBACK_ITERATIONS = 3000
-_FALLBACK_GAP = 1e-15  # stop the iteration once every row's duality gap is below this
+_FALLBACK_CHUNK = 50  # iterations between two polishing attempts
+_FALLBACK_ROUNDS = 60
 _POLISH_THRESHOLDS = (0.0, 1e-9, 1e-6, 1e-3)
 
 Pattern = tuple[tuple[int, ...], ...]  # one nonempty tuple of entry indices per group
@@ -280,11 +280,25 @@ class _Incumbent:
         return cls(np.zeros(shape), np.full(rows, np.inf), np.zeros(rows, dtype=bool))
 
     def offer(
-        self, a: np.ndarray, active: np.ndarray, lam: np.ndarray, y: np.ndarray, support: np.ndarray, valid: np.ndarray
+        self,
+        a: np.ndarray,
+        active: np.ndarray,
+        lam: np.ndarray,
+        y: np.ndarray,
+        support: np.ndarray,
+        valid: np.ndarray,
+        exact: bool = True,
     ) -> None:
-        """Candidate weights λ with point y = c + Σ λ a and support (G, m) or (G, m, B)."""
+        """Candidate weights λ with point y = c + Σ λ a and support (G, m) or (G, m, B).
+
+        An inexact candidate (an iterate) never counts as optimal: it wins only where no
+        exact candidate passes the optimality check.
+        """
         objective = np.einsum("db,db->b", y, y)
-        optimal = _kkt_violation(a, active, y, support) <= _KKT_TOL
+        if exact:
+            optimal = _kkt_violation(a, active, y, support) <= _KKT_TOL
+        else:
+            optimal = np.zeros_like(valid)
         better = valid & ((optimal & ~self.optimal) | ((optimal == self.optimal) & (objective < self.objective)))
         np.copyto(self.weights, lam, where=better)
         np.copyto(self.objective, objective, where=better)
@@ -332,17 +346,38 @@ def _cleaned(lam: np.ndarray, active: np.ndarray) -> np.ndarray:
 
 
 def _iterate_and_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """Too many patterns: accelerated projected gradient, then exact solves on its support."""
-    lam = _accelerated_projected_gradient(c, a, active)
+    """Too many patterns: accelerated projected gradient with exact polishing.
+
+    Every `_FALLBACK_CHUNK` iterations the pending rows are polished; rows whose
+    polished weights pass the optimality check are final and leave the iteration.
+    """
+    weights = np.zeros(active.shape)
+    pending = np.arange(active.shape[-1])
+    fista = _Fista.start(c, a, active)
+    for round_ in range(_FALLBACK_ROUNDS):
+        fista.run(_FALLBACK_CHUNK)
+        rows = (Ellipsis, pending)
+        best = _polished(c[rows], a[rows], active[rows], fista.lam)
+        done = best.optimal | (round_ == _FALLBACK_ROUNDS - 1)
+        weights[..., pending[done]] = best.weights[..., done]
+        pending = pending[~done]
+        if not pending.size:
+            break
+        fista.keep(~done)
+    return _cleaned(weights, active)
+
+
+def _polished(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> _Incumbent:
+    """Best of an iterate λ and the exact solves on its support for a few thresholds."""
     rows = lam.shape[-1]
     best = _Incumbent.empty(lam.shape)
-    best.offer(a, active, lam, _point(c, a, lam), lam > 0.0, np.ones(rows, dtype=bool))
+    best.offer(a, active, lam, _point(c, a, lam), lam > 0.0, np.ones(rows, dtype=bool), exact=False)
     for threshold in _POLISH_THRESHOLDS:
         support = active & (lam > threshold * lam.max(axis=1, keepdims=True))
         polished = _solve_on_support(c, a, support)
         feasible = (polished >= -_FEASIBILITY_TOL).all(axis=(0, 1))
         best.offer(a, active, polished, _point(c, a, polished), support, feasible)
-    return _cleaned(best.weights, active)
+    return best
 
 
 def _point(c: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -362,36 +397,46 @@ def _solve_on_support(c: np.ndarray, a: np.ndarray, support: np.ndarray) -> np.n
     return np.where(is_base, 1.0 - lam.sum(axis=1, keepdims=True), lam)
 
 
-def _accelerated_projected_gradient(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """FISTA with adaptive restart on λ; feasible weights (G, m, B) close to optimal."""
-    count = active.sum(axis=1, keepdims=True)
-    mean = a.sum(axis=1) / count  # (G, d, B); moving a group by a constant changes nothing
-    c = c + mean.sum(axis=0)
-    a = (a - mean[:, None]) * active[:, :, None]
-    lipschitz = np.maximum(np.einsum("gpdb,gpdb->b", a, a), 1e-300)
+@dataclass
+class _Fista:
+    """FISTA with adaptive restart on λ, for the rows still iterating.
 
-    lam = active / count
-    extrapolated = lam
-    momentum = np.ones(lam.shape[-1])
-    for iteration in range(_FALLBACK_ITERATIONS):
-        gradient = np.einsum("gpdb,db->gpb", a, _point(c, a, extrapolated))
-        new = _project_to_simplices(extrapolated - gradient / lipschitz, active)
-        restart = np.einsum("gpb,gpb->b", gradient, new - lam) > 0.0
-        following = (1.0 + np.sqrt(1.0 + 4.0 * momentum**2)) / 2.0
-        beta = np.where(restart, 0.0, (momentum - 1.0) / following)
-        momentum = np.where(restart, 1.0, following)
-        extrapolated = new + beta * (new - lam)
-        lam = new
-        if iteration % 50 == 49 and _duality_gap(c, a, active, lam).max() <= _FALLBACK_GAP:
-            break
-    return lam
+    It works on centered copies of the data (a_gp − mean_p a_gp, the mean moved into
+    the center), which change nothing in the problem but shrink the step constant.
+    """
 
+    c: np.ndarray
+    a: np.ndarray
+    active: np.ndarray
+    lipschitz: np.ndarray
+    lam: np.ndarray
+    extrapolated: np.ndarray
+    momentum: np.ndarray
 
-def _duality_gap(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """Frank–Wolfe gap Σ_g (Σ_p λ_gp <a_gp,y> − min_q <a_gq,y>) ≥ ½‖y‖² − ½‖y*‖²."""
-    values = np.einsum("gpdb,db->gpb", a, _point(c, a, lam))
-    lowest = np.where(active, values, np.inf).min(axis=1)
-    return ((lam * values).sum(axis=1) - lowest).sum(axis=0)
+    @classmethod
+    def start(cls, c: np.ndarray, a: np.ndarray, active: np.ndarray) -> "_Fista":
+        count = active.sum(axis=1, keepdims=True)
+        mean = a.sum(axis=1) / count  # (G, d, B)
+        centered = (a - mean[:, None]) * active[:, :, None]
+        lipschitz = np.maximum(np.einsum("gpdb,gpdb->b", centered, centered), 1e-300)
+        lam = active / count
+        return cls(c + mean.sum(axis=0), centered, active, lipschitz, lam, lam, np.ones(c.shape[-1]))
+
+    def run(self, iterations: int) -> None:
+        for _ in range(iterations):
+            gradient = np.einsum("gpdb,db->gpb", self.a, _point(self.c, self.a, self.extrapolated))
+            new = _project_to_simplices(self.extrapolated - gradient / self.lipschitz, self.active)
+            restart = np.einsum("gpb,gpb->b", gradient, new - self.lam) > 0.0
+            following = (1.0 + np.sqrt(1.0 + 4.0 * self.momentum**2)) / 2.0
+            beta = np.where(restart, 0.0, (self.momentum - 1.0) / following)
+            self.momentum = np.where(restart, 1.0, following)
+            self.extrapolated = new + beta * (new - self.lam)
+            self.lam = new
+
+    def keep(self, rows: np.ndarray) -> None:
+        """Drop the rows that are done (rows: (B,) bool of those to keep)."""
+        for name in ("c", "a", "active", "lipschitz", "lam", "extrapolated", "momentum"):
+            setattr(self, name, getattr(self, name)[..., rows])
 
 
 def _project_to_simplices(v: np.ndarray, active: np.ndarray) -> np.ndarray:

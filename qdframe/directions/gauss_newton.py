@@ -1,0 +1,306 @@
+"""`gauss-newton`: a semismooth Levenberg–Marquardt direction (beyond the paper).
+
+I is half a sum of squares of residuals, each with a generalized Jacobian taken
+from the active pieces (:meth:`Functional.distance_sides`):
+
+    φ: √w_k · h_b(y_k, z_k)        υ: √w_k · (x_k − x0 − Z_k)
+    χ: x0_j + Z_{N−1,j} − xT_j      ω: √w_k · e(x_k)
+
+The cumulative integral Z = ∫_0^t z stays sparse: Z is an extra unknown per node tied
+to z by the trapezoid recursion Z_k = Z_{k−1} + h/2·(z_{k−1} + z_k), a banded equality
+constraint, and x(t_0) = x0, Z_0 = 0 are constraints too. The step d minimizes
+
+    λ/2·‖r + J d‖² + [cost model] + μ/2·Σ_k w_k ‖d_k‖²   subject to  E d = 0,
+
+with μ adapted to the success of the previous step (ratio of actual to predicted
+decrease). Without a cost this is one sparse symmetric KKT solve (SuperLU). With a
+nonsmooth cost (Example 7.1) the cost model is the max of the linearizations of all
+pieces of each max-group — the δ-active ones and those that become active within the
+step, so the model is exact for piecewise-linear costs such as |x1| — and the
+linearized active piece of each min-group, and
+the step is a sparse QP solved with Clarabel; there h_b = max(0, ℓ) is kept one-sided
+(a slack s ≥ 0, s ≥ ℓ_side + ∇ℓ_side·d per side), since a linear cost would otherwise
+push z across the boundary of F where the Jacobian element of h_b is 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import BackendError
+from .base import Direction, DirectionSolver
+
+if TYPE_CHECKING:
+    from ..functional import Functional
+
+
+@dataclass
+class GaussNewton(DirectionSolver):
+    """Levenberg–Marquardt steps on the residuals behind I, in the L² metric.
+
+    mu: the initial damping μ; mu_min/mu_max bound it. The solver keeps μ between
+    iterations (a solve resets it): it shrinks by 3 after a step that achieved more
+    than 3/4 of the predicted decrease and doubles after one below 1/4.
+    """
+
+    name = "gauss-newton"
+    mu: float = 1e-3
+    mu_min: float = 1e-12
+    mu_max: float = 1e8
+    _state: dict = field(default_factory=dict, repr=False)
+
+    def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
+        value = functional.objective(xi)
+        self._adapt(functional, xi, value)
+        system = _System(functional, xi, delta)
+        mu = self._state["mu"]
+        step_ext, predicted, slope = system.solve(mu)
+        step = system.unknowns_step(step_ext)
+        self._state.update(previous_value=value, predicted=predicted, functional=id(functional), xi=xi, step=step)
+        per_node = np.linalg.norm(step, axis=1)
+        return Direction(step=step, deviation=per_node, slope=slope,
+                         stationary=bool(predicted <= 1e-14 * max(value, 1e-300) or not np.any(per_node)))
+
+    def _adapt(self, functional: "Functional", xi: np.ndarray, value: float) -> None:
+        state = self._state
+        if state.get("functional") != id(functional):  # a new solve: start afresh
+            state.clear()
+            state["mu"] = self.mu
+            return
+        predicted = state["predicted"]
+        ratio = (state["previous_value"] - value) / predicted if predicted > 0 else 0.0
+        step = state["step"]
+        norm2 = float(np.sum(step**2))
+        gamma = float(np.sum((xi - state["xi"]) * step)) / norm2 if norm2 > 0 else 1.0
+        if gamma < 0.5:  # the line search cut the step: the LM step scales like 1/μ
+            state["mu"] = min(state["mu"] * 2.0 / max(gamma, 1e-6), self.mu_max)
+        elif ratio > 0.75:
+            state["mu"] = max(state["mu"] / 3.0, self.mu_min)
+        elif ratio < 0.25:
+            state["mu"] = min(state["mu"] * 2.0, self.mu_max)
+
+
+class _System:
+    """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node."""
+
+    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float) -> None:
+        self.f = functional
+        n, m = functional.n, functional.m
+        nodes = functional.grid.nodes
+        self.n, self.m, self.nodes = n, m, nodes
+        self.width = 3 * n + m  # per node: x, z, u, Z
+        self.size = nodes * self.width
+        self.delta = delta
+        self.penalty = functional.penalty
+        self.value = functional.objective(xi)
+        self.one_sided = functional.cost is not None
+        self.sides = functional.distance_sides(xi)
+        self.residual, self.jacobian = self._least_squares(xi)
+        self.constraints = self._constraints()
+        self.cost = functional.cost_pieces(xi) if functional.cost is not None else None
+
+    # column indices of each variable at every node: (N, width)
+    def _columns(self, start: int, count: int) -> np.ndarray:
+        base = np.arange(self.nodes)[:, None] * self.width
+        return base + start + np.arange(count)[None, :]
+
+    def x_cols(self) -> np.ndarray:
+        return self._columns(0, self.n)
+
+    def z_cols(self) -> np.ndarray:
+        return self._columns(self.n, self.n)
+
+    def u_cols(self) -> np.ndarray:
+        return self._columns(2 * self.n, self.m)
+
+    def Z_cols(self) -> np.ndarray:
+        return self._columns(2 * self.n + self.m, self.n)
+
+    def y_cols(self) -> np.ndarray:
+        return np.concatenate([self.x_cols(), self.u_cols()], axis=1)
+
+    def _least_squares(self, xi: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        f, nodes = self.f, self.nodes
+        root_w = np.sqrt(f.weights)
+        rows, cols, vals, residuals = [], [], [], []
+        count = 0
+
+        def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
+            """res: (R,), col/val: (R, E) entries of R new rows."""
+            nonlocal count
+            index = count + np.arange(res.size)
+            rows.append(np.repeat(index, col.shape[1]))
+            cols.append(col.ravel())
+            vals.append(val.ravel())
+            residuals.append(res)
+            count += res.size
+
+        y_cols, z_cols = self.y_cols(), self.z_cols()
+        if not self.one_sided:  # φ: √w·h with the Jacobian of the largest side where h > 0
+            for block in self.sides:
+                ell = np.array([side[0] for side in block.sides])
+                best = np.argmax(ell, axis=0)
+                positive = (ell[best, np.arange(nodes)] > 0)[:, None]
+                dell_dy = np.choose(best[:, None], [side[1] for side in block.sides])
+                psi = np.choose(best[:, None], [side[2] for side in block.sides])
+                add(root_w * block.h,
+                    np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
+                    root_w[:, None] * np.where(positive, np.concatenate([dell_dy, psi], axis=1), 0.0))
+        consistency = f.consistency(xi)  # υ, one row per node and state
+        x_cols, Z_cols = self.x_cols(), self.Z_cols()
+        add((root_w[:, None] * consistency).ravel(),
+            np.stack([x_cols.ravel(), Z_cols.ravel()], axis=1),
+            np.stack([np.repeat(root_w, self.n), -np.repeat(root_w, self.n)], axis=1))
+        end = f.end_residual(xi)  # χ
+        if end.size:
+            add(end, Z_cols[-1, f.end][:, None], np.ones((end.size, 1)))
+        if f.surface is not None:  # ω
+            e, de = f.surface_values(xi)
+            o = e.shape[1]
+            add((root_w[:, None] * e).ravel(),
+                np.repeat(x_cols[:, None, :], o, axis=1).reshape(nodes * o, self.n),
+                (root_w[:, None, None] * de).reshape(nodes * o, self.n))
+        jacobian = sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, self.size)
+        )
+        return np.concatenate(residuals), jacobian
+
+    def _constraints(self) -> sp.csr_matrix:
+        """E d = 0: dx_0 = 0, dZ_0 = 0, dZ_k − dZ_{k−1} − h/2·(dz_k + dz_{k−1}) = 0."""
+        n, h = self.n, self.f.grid.step
+        x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
+        fixed = np.concatenate([x_cols[0], Z_cols[0]])
+        rows = [np.arange(2 * n)]
+        cols = [fixed]
+        vals = [np.ones(2 * n)]
+        recursion = 2 * n + np.arange((self.nodes - 1) * n)
+        for col, val in ((Z_cols[1:], 1.0), (Z_cols[:-1], -1.0), (z_cols[1:], -h / 2), (z_cols[:-1], -h / 2)):
+            rows.append(recursion)
+            cols.append(col.ravel())
+            vals.append(np.full(recursion.size, val))
+        return sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(2 * n + recursion.size, self.size),
+        )
+
+    def _damping(self) -> np.ndarray:
+        """L² weights w_k on x, z, u (none on Z, which the constraints determine)."""
+        weights = np.zeros((self.nodes, self.width))
+        weights[:, : 2 * self.n + self.m] = self.f.weights[:, None]
+        return weights.ravel()
+
+    def solve(self, mu: float) -> tuple[np.ndarray, float, float]:
+        """The step (extended), the predicted decrease of the objective, and its slope."""
+        J, r, lam = self.jacobian, self.residual, self.penalty
+        hessian = (lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc()
+        gradient = lam * (J.T @ r)
+        if self.cost is None:
+            d = self._solve_kkt(hessian, gradient)
+            predicted = -(gradient @ d + 0.5 * lam * np.sum((J @ d) ** 2))
+            return d, predicted, float(gradient @ d)
+        return self._solve_cost_qp(hessian, gradient)
+
+    def _solve_kkt(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> np.ndarray:
+        E = self.constraints
+        kkt = sp.bmat([[hessian, E.T], [E, None]], format="csc")
+        rhs = np.concatenate([-gradient, np.zeros(E.shape[0])])
+        solution = spla.spsolve(kkt, rhs)
+        if not np.all(np.isfinite(solution)):
+            raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
+        return solution[: self.size]
+
+    def _solve_cost_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """The step as a sparse QP in [d | t | s] (Clarabel):
+
+        min ½dᵀHd + gᵀd + Σ_k w_k t_k + (λ/2)·Σ w_k s_bk² + Σ_k w_k ∇b_p*·d_k
+        s.t. E d = 0;  a_q + ∇a_q·d_k ≤ t_k (every piece q of each cost max-group);
+             ℓ_side + ∇ℓ_side·d_k ≤ s_bk and 0 ≤ s_bk (every side of every block).
+        """
+        import clarabel
+
+        nodes, w, lam = self.nodes, self.f.weights, self.penalty
+        y_cols, z_cols = self.y_cols(), self.z_cols()
+        max_groups, min_groups = self.cost  # type: ignore[misc]
+        min_linear = np.zeros(self.size)
+        for values, grads in min_groups:  # concave: linearize the active piece
+            pick = grads[np.arange(nodes), np.argmin(values, axis=1)]
+            np.add.at(min_linear, y_cols.ravel(), (w[:, None] * pick).ravel())
+        n_t, n_s = nodes * len(max_groups), nodes * len(self.sides)
+        t0, s0 = self.size, self.size + n_t
+        total = s0 + n_s
+        rows, cols, vals, rhs = [], [], [], []
+        count = 0
+
+        def inequality(col: np.ndarray, val: np.ndarray, bound: np.ndarray) -> None:
+            """Rows col/val (R, E) with Σ val·v ≤ bound (R,)."""
+            nonlocal count
+            rows.append(np.repeat(count + np.arange(bound.size), col.shape[1]))
+            cols.append(col.ravel())
+            vals.append(val.ravel())
+            rhs.append(bound)
+            count += bound.size
+
+        for g, (values, grads) in enumerate(max_groups):  # the max of every piece's linearization
+            node, piece = np.nonzero(np.ones_like(values, dtype=bool))
+            inequality(np.concatenate([y_cols[node], (t0 + g * nodes + node)[:, None]], axis=1),
+                       np.concatenate([grads[node, piece], -np.ones((node.size, 1))], axis=1),
+                       -values[node, piece])
+        for b, block in enumerate(self.sides):
+            s_cols = (s0 + b * nodes + np.arange(nodes))[:, None]
+            for ell, dell_dy, psi in block.sides:
+                inequality(np.concatenate([y_cols, z_cols[:, list(block.coords)], s_cols], axis=1),
+                           np.concatenate([dell_dy, psi, -np.ones((nodes, 1))], axis=1), -ell)
+            inequality(s_cols, -np.ones((nodes, 1)), np.zeros(nodes))
+        slack_weights = lam * np.tile(w, len(self.sides))
+        P = sp.block_diag([hessian, sp.csc_matrix((n_t, n_t)), sp.diags(slack_weights)], format="csc")
+        q = np.concatenate([gradient + min_linear, np.tile(w, len(max_groups)), np.zeros(n_s)])
+        E = self.constraints
+        A = sp.vstack([
+            sp.hstack([E, sp.csr_matrix((E.shape[0], total - self.size))]),
+            sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, total)),
+        ], format="csc")
+        b_vec = np.concatenate([np.zeros(E.shape[0])] + rhs)
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
+            setattr(settings, name, 1e-12)
+        solution = clarabel.DefaultSolver(
+            sp.triu(P, format="csc"), q, A, b_vec,
+            [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(count)], settings,
+        ).solve()
+        if str(solution.status) not in ("Solved", "AlmostSolved"):
+            raise BackendError(f"direction 'gauss-newton': the step QP (Clarabel) ended with status {solution.status}")
+        v = np.asarray(solution.x)
+        d, t, slack = v[: self.size], v[t0:s0], v[s0:]
+        J = self.jacobian
+        model = (
+            0.5 * lam * np.sum((self.residual + J @ d) ** 2)
+            + 0.5 * float(slack_weights @ slack**2)
+            + float(np.tile(w, len(max_groups)) @ t)
+            + float(min_linear @ d)
+            + sum(float(w @ values.min(axis=1)) for values, _ in min_groups)
+        )
+        # slope of the objective along d (the cost's and φ's one-sided derivatives)
+        dy = d[y_cols]
+        slope = float(gradient @ d + min_linear @ d)
+        for values, grads in max_groups:
+            active = values >= values.max(axis=1, keepdims=True) - self.delta
+            slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
+        for block in self.sides:
+            h = block.h
+            ells = np.array([side[0] for side in block.sides])
+            dz = d[z_cols[:, list(block.coords)]]
+            rates = np.array([np.einsum("kp,kp->k", dy_, dy) + np.einsum("kc,kc->k", psi, dz)
+                              for _, dy_, psi in block.sides])
+            rate = np.max(np.where(ells >= h[None, :] - 1e-14, rates, -np.inf), axis=0)
+            slope += lam * float(w @ np.where(h > 0, h * np.where(np.isfinite(rate), rate, 0.0), 0.0))
+        return d, float(self.value - model), slope
+
+    def unknowns_step(self, step: np.ndarray) -> np.ndarray:
+        """The step on ξ = [x | z | u] per node (dropping Z)."""
+        return step.reshape(self.nodes, self.width)[:, : 2 * self.n + self.m].copy()
