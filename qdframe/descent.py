@@ -98,6 +98,7 @@ def descend(
 ) -> SolveResult:
     """Run the descent from `start` (default: the model's initial guess)."""
     clock = time.perf_counter()
+    solver.start(functional)
     xi = functional.initial_point() if start is None else np.array(start, dtype=float)
     terms = functional.terms(xi)
     history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), functional.boundary_error(xi), 0.0)]

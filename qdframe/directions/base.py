@@ -46,6 +46,9 @@ class DirectionSolver(ABC):
 
     name: ClassVar[str] = ""
 
+    def start(self, functional: "Functional") -> None:
+        """Called once before a descent on `functional`: reset any state kept between iterations."""
+
     @abstractmethod
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         """Direction at ξ with δ-active pieces (paper Section 6)."""

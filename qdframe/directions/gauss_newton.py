@@ -44,8 +44,9 @@ class GaussNewton(DirectionSolver):
     """Levenberg–Marquardt steps on the residuals behind I, in the L² metric.
 
     mu: the initial damping μ; mu_min/mu_max bound it. The solver keeps μ between
-    iterations (a solve resets it): it shrinks by 3 after a step that achieved more
-    than 3/4 of the predicted decrease and doubles after one below 1/4.
+    iterations (`start` resets it for each solve): it shrinks by 3 after a full step
+    that achieved more than 3/4 of the predicted decrease, doubles after one below 1/4,
+    and grows by 2/γ when the line search cut the step to γ < 1/2.
     """
 
     name = "gauss-newton"
@@ -56,20 +57,22 @@ class GaussNewton(DirectionSolver):
 
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)
-        self._adapt(functional, xi, value)
+        self._adapt(xi, value)
         system = _System(functional, xi, delta)
         mu = self._state["mu"]
         step_ext, predicted, slope = system.solve(mu)
         step = system.unknowns_step(step_ext)
-        self._state.update(previous_value=value, predicted=predicted, functional=id(functional), xi=xi, step=step)
+        self._state.update(previous_value=value, predicted=predicted, xi=xi, step=step)
         per_node = np.linalg.norm(step, axis=1)
         return Direction(step=step, deviation=per_node, slope=slope,
                          stationary=bool(predicted <= 1e-14 * max(value, 1e-300) or not np.any(per_node)))
 
-    def _adapt(self, functional: "Functional", xi: np.ndarray, value: float) -> None:
+    def start(self, functional: "Functional") -> None:
+        self._state.clear()
+
+    def _adapt(self, xi: np.ndarray, value: float) -> None:
         state = self._state
-        if state.get("functional") != id(functional):  # a new solve: start afresh
-            state.clear()
+        if "step" not in state:  # the first iteration of a solve
             state["mu"] = self.mu
             return
         predicted = state["predicted"]
