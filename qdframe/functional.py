@@ -68,20 +68,69 @@ class DistanceSides:
 
 @dataclass
 class _Piece:
-    """One group of pieces at ψ*: values (N, m) and gradients (N, m, n)."""
+    """One group of pieces at ψ: values (N, m) and gradients (N, m, n + m)."""
 
     values: np.ndarray
     grads: np.ndarray
 
 
 @dataclass
-class _BlockState:
-    """h_b, ψ*_b and the max/min groups evaluated at ψ*."""
+class _SignPart:
+    """A sign term at ψ: κ_ψ(s), dκ/ds, the amplitude a and its groups, ∇s."""
 
-    h: np.ndarray  # (N,)
-    psi: np.ndarray  # (N, k)
-    max_parts: list[_Piece]  # values <f_q, ψ*>, grads ψ*ᵀ ∂f_q/∂x
-    min_parts: list[_Piece]  # values g_p(x, ψ*), grads ∂g_p/∂x
+    kappa: np.ndarray  # (N,)
+    slope: np.ndarray  # (N,) dκ_ψ/ds
+    amplitude: np.ndarray  # (N,) a(y)
+    groups: list[_Piece]  # a = Σ_i max_q a_iq
+    switch_grad: np.ndarray  # (N, n + m)
+
+
+@dataclass
+class _Side:
+    """A block evaluated at ψ (N, k): ℓ(ψ) = <z, ψ> − c(F_b, ψ) and its groups."""
+
+    psi: np.ndarray
+    ell: np.ndarray
+    max_parts: list[_Piece]  # values <f_q, ψ>, gradients ψᵀ ∂f_q/∂y
+    min_parts: list[_Piece]  # values g_p(y, ψ), gradients ∂g_p/∂y
+    sign_parts: list[_SignPart]
+
+    @property
+    def h(self) -> np.ndarray:
+        return np.maximum(0.0, self.ell)
+
+    def gradient(self, width: int) -> np.ndarray:
+        """∂ℓ/∂y (N, width) from the active piece of every group (a generalized-Jacobian element)."""
+        rows = np.arange(self.ell.size)
+        grad = np.zeros((self.ell.size, width))
+        for part in self.max_parts:
+            grad -= part.grads[rows, np.argmax(part.values, axis=1)]
+        for part in self.min_parts:
+            grad -= part.grads[rows, np.argmin(part.values, axis=1)]
+        for sign in self.sign_parts:
+            grad -= sign.amplitude[:, None] * sign.slope[:, None] * sign.switch_grad
+            for piece in sign.groups:
+                grad -= sign.kappa[:, None] * piece.grads[rows, np.argmax(piece.values, axis=1)]
+        return grad
+
+    @staticmethod
+    def choose(upper: np.ndarray, a: "_Side", b: "_Side") -> "_Side":
+        """Per node, side `a` where `upper` else side `b` (same block, same groups)."""
+
+        def pick(u, v):
+            mask = upper.reshape(upper.shape + (1,) * (u.ndim - 1))
+            return np.where(mask, u, v)
+
+        return _Side(
+            pick(a.psi, b.psi),
+            pick(a.ell, b.ell),
+            [_Piece(pick(p.values, q.values), pick(p.grads, q.grads)) for p, q in zip(a.max_parts, b.max_parts)],
+            [_Piece(pick(p.values, q.values), pick(p.grads, q.grads)) for p, q in zip(a.min_parts, b.min_parts)],
+            [
+                _SignPart(pick(p.kappa, q.kappa), pick(p.slope, q.slope), p.amplitude, p.groups, p.switch_grad)
+                for p, q in zip(a.sign_parts, b.sign_parts)
+            ],
+        )
 
 
 class Functional:
@@ -185,9 +234,9 @@ class Functional:
             if block.size != 1:
                 bounds.append(None)
                 continue
-            c_plus = self._support_1d(block, y, +1.0)
-            c_minus = self._support_1d(block, y, -1.0)
-            bounds.append((-c_minus, c_plus))
+            zero = np.zeros((y.shape[0], self.n))
+            plus, minus = self._sides_1d(block, y, zero)  # ℓ(ψ) = −c(F, ψ) at z = 0
+            bounds.append((minus.ell, -plus.ell))
         return bounds
 
     # ------------------------------------------------------ quasidifferential
@@ -211,16 +260,23 @@ class Functional:
             smooth[:, :n] += np.einsum("ko,kon->kn", e, de)
         sub_groups: list[tuple[np.ndarray, np.ndarray]] = []
         sup_groups: list[tuple[np.ndarray, np.ndarray]] = []
-        for block, state in zip(self.blocks, self._block_states(y, z)):
-            h = state.h
+        for block, side in zip(self.blocks, self._block_states(y, z)):
+            h = side.h
             positive = h > 0
-            smooth[:, n + np.asarray(block.coords)] += h[:, None] * state.psi  # h ψ* e_z
-            for part in state.min_parts:  # −min g is convex: subdifferential (4.555)
+            smooth[:, n + np.asarray(block.coords)] += h[:, None] * side.psi  # h ψ* e_z
+            for part in side.min_parts:  # −min g is convex: subdifferential (4.555)
                 mask = _delta_active(-part.values, delta, positive)
                 sub_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
-            for part in state.max_parts:  # −max <f, ψ*> is concave: superdifferential (4.5)
+            for part in side.max_parts:  # −max <f, ψ*> is concave: superdifferential (4.5)
                 mask = _delta_active(part.values, delta, positive)
                 sup_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
+            for sign in side.sign_parts:  # −κ·a(y) − smooth in s: by the sign of κ
+                smooth -= self._embed(h[:, None] * sign.amplitude[:, None] * sign.slope[:, None] * sign.switch_grad)
+                for piece in sign.groups:
+                    mask = _delta_active(piece.values, delta, positive)
+                    scale = (h * sign.kappa)[:, None, None]
+                    sup_groups.append((self._embed(-np.maximum(scale, 0.0) * piece.grads), mask))
+                    sub_groups.append((self._embed(np.maximum(-scale, 0.0) * piece.grads), mask))
         sub = _assemble(smooth, sub_groups).scaled(self.penalty)
         sup = _assemble(np.zeros_like(smooth), sup_groups).scaled(self.penalty)
         if self.cost is not None:
@@ -231,35 +287,14 @@ class Functional:
     # ------------------------------------------------ residuals and Jacobians
     def distance_sides(self, xi: np.ndarray) -> list[DistanceSides]:
         """For every block, h_b = max(0, max_side ℓ_side) with each side's signed ℓ and
-        one element of its generalized Jacobian (the argmax piece of each max-group and
-        the argmin piece of each min-group). One-coordinate blocks have two sides,
-        ψ = +1 and ψ = −1 (the interval's ends); S_k blocks have one, ψ = ψ*."""
+        one element of its generalized Jacobian (:meth:`_Side.gradient`). One-coordinate
+        blocks have two sides, ψ = +1 and ψ = −1 (the interval's ends); S_k blocks have
+        one, ψ = ψ*."""
         y, z = self.arguments(xi), self.split(xi)[1]
-        rows = np.arange(y.shape[0])
         out = []
         for block in self.blocks:
-            if block.size == 1:
-                psis = [np.ones((y.shape[0], 1)), -np.ones((y.shape[0], 1))]
-            else:
-                psis = [self._state_sphere(block, y, z).psi]
-            sides = []
-            for psi in psis:
-                zb = z[:, list(block.coords)]
-                ell = np.einsum("nk,nk->n", zb, psi)
-                dell_dy = np.zeros((y.shape[0], self.args))
-                for group in block.max_groups:
-                    f, jac = self._max_group(block, group, y)
-                    values = np.einsum("nqk,nk->nq", f, psi)
-                    pick = np.argmax(values, axis=1)
-                    ell -= values[rows, pick]
-                    dell_dy -= np.einsum("nkd,nk->nd", jac[rows, pick], psi)
-                for group in block.min_groups:
-                    g, grad = self._min_group(block, group, y, psi)
-                    pick = np.argmin(g, axis=1)
-                    ell -= g[rows, pick]
-                    dell_dy -= grad[rows, pick]
-                sides.append((ell, dell_dy, psi))
-            out.append(DistanceSides(block.coords, sides))
+            sides = self._sides_1d(block, y, z) if block.size == 1 else [self._state_sphere(block, y, z)]
+            out.append(DistanceSides(block.coords, [(side.ell, side.gradient(self.args), side.psi) for side in sides]))
         return out
 
     def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
@@ -341,56 +376,67 @@ class Functional:
         self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
         return g, grad
 
-    def _support_1d(self, block: SetBlock, x: np.ndarray, psi: float) -> np.ndarray:
-        """c(F_b(x), ψ) for ψ = ±1 at every node."""
-        total = np.zeros(x.shape[0])
-        for group in block.max_groups:
-            total += (self._max_group(block, group, x)[0][:, :, 0] * psi).max(axis=1)
-        psi_column = np.full((x.shape[0], 1), psi)
-        for group in block.min_groups:
-            total += self._min_group(block, group, x, psi_column)[0].min(axis=1)
-        return total
-
-    def _block_states(self, x: np.ndarray, z: np.ndarray) -> list[_BlockState]:
+    def _block_states(self, y: np.ndarray, z: np.ndarray) -> list[_Side]:
+        """Every block at its ψ*."""
         return [
-            self._state_1d(block, x, z) if block.size == 1 else self._state_sphere(block, x, z)
+            self._state_1d(block, y, z) if block.size == 1 else self._state_sphere(block, y, z)
             for block in self.blocks
         ]
 
-    def _state_1d(self, block: SetBlock, x: np.ndarray, z: np.ndarray) -> _BlockState:
+    def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,
+              maxes: list[tuple[np.ndarray, np.ndarray]] | None = None) -> _Side:
+        """All groups of `block` at ψ (N, k); `maxes` reuses evaluated max-groups."""
+        if maxes is None:
+            maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        ell = np.einsum("nk,nk->n", z[:, list(block.coords)], psi)
+        max_parts = [_Piece(np.einsum("nqk,nk->nq", f, psi), np.einsum("nqkd,nk->nqd", jac, psi)) for f, jac in maxes]
+        min_parts = [_Piece(*self._min_group(block, group, y, psi)) for group in block.min_groups]
+        sign_parts = [self._sign_part(block, term, y, psi[:, 0]) for term in block.signs]
+        for part in max_parts:
+            ell -= part.values.max(axis=1)
+        for part in min_parts:
+            ell -= part.values.min(axis=1)
+        for part in sign_parts:
+            ell -= part.kappa * part.amplitude
+        return _Side(psi, ell, max_parts, min_parts, sign_parts)
+
+    def _sign_part(self, block: SetBlock, term, y: np.ndarray, psi: np.ndarray) -> _SignPart:
+        """κ_ψ(s)·a(y) of a sign term, ψ = ±1 per node (model.SignTerm)."""
+        label = f"block {block.name or block.coords} sign term {term.name!r}"
+        s, ds = term.switch(y)
+        self._check(f"{label} switch", s, (y.shape[0],))
+        self._check(f"{label} switch gradient", ds, (y.shape[0], self.args))
+        if isinstance(term.amplitude, (int, float)):
+            groups: list[_Piece] = []
+            amplitude = np.full(y.shape[0], float(term.amplitude))
+        else:
+            groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
+            amplitude = sum(piece.values.max(axis=1) for piece in groups)
+        if term.band > 0:
+            ramp = 1.0 + 2.0 * psi * s / term.band
+            kappa = np.clip(ramp, -1.0, 1.0)
+            slope = np.where(np.abs(ramp) < 1.0, 2.0 * psi / term.band, 0.0)
+        else:  # exact Filippov sign: the whole interval only at s = 0
+            kappa = np.where(psi * s >= 0, 1.0, -1.0)
+            slope = np.zeros_like(s)
+        return _SignPart(kappa, slope, amplitude, groups, ds)
+
+    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> list[_Side]:
+        """A one-coordinate block at ψ = +1 and ψ = −1."""
+        maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        ones = np.ones((y.shape[0], 1))
+        return [self._side(block, y, z, ones, maxes), self._side(block, y, z, -ones, maxes)]
+
+    def _state_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:
         """ψ ∈ {−1, +1}: ψ* in closed form (the nearer violated end of the interval)."""
-        nodes = x.shape[0]
-        zi = z[:, block.coords[0]]
-        maxes = [self._max_group(block, group, x) for group in block.max_groups]
-        mins = {
-            sign: [self._min_group(block, group, x, np.full((nodes, 1), sign)) for group in block.min_groups]
-            for sign in (1.0, -1.0)
-        }
+        plus, minus = self._sides_1d(block, y, z)
+        return _Side.choose(plus.ell >= minus.ell, plus, minus)
 
-        def support(sign: float) -> np.ndarray:
-            total = np.zeros(nodes)
-            for f, _ in maxes:
-                total += (sign * f[:, :, 0]).max(axis=1)
-            for g, _ in mins[sign]:
-                total += g.min(axis=1)
-            return total
-
-        ell_plus, ell_minus = zi - support(1.0), -zi - support(-1.0)
-        upper = ell_plus >= ell_minus
-        psi = np.where(upper, 1.0, -1.0)
-        h = np.maximum(0.0, np.where(upper, ell_plus, ell_minus))
-        max_parts = [_Piece(psi[:, None] * f[:, :, 0], psi[:, None, None] * jac[:, :, 0, :]) for f, jac in maxes]
-        min_parts = [
-            _Piece(np.where(upper[:, None], gp, gm), np.where(upper[:, None, None], dp, dm))
-            for (gp, dp), (gm, dm) in zip(mins[1.0], mins[-1.0])
-        ]
-        return _BlockState(h, psi[:, None], max_parts, min_parts)
-
-    def _state_sphere(self, block: SetBlock, x: np.ndarray, z: np.ndarray) -> _BlockState:
+    def _state_sphere(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:
         """ψ ∈ S_k: ψ* searched numerically, vectorized over nodes (Remark 5.1)."""
-        nodes, k = x.shape[0], block.size
+        nodes, k = y.shape[0], block.size
         zb = z[:, list(block.coords)]
-        maxes = [self._max_group(block, group, x) for group in block.max_groups]
+        maxes = [self._max_group(block, group, y) for group in block.max_groups]
 
         def ell(psi: np.ndarray) -> np.ndarray:  # psi (N, M, k) -> (N, M)
             count = psi.shape[1]
@@ -398,20 +444,15 @@ class Functional:
             for f, _ in maxes:
                 value -= np.einsum("nqk,nmk->nmq", f, psi).max(axis=2)
             if block.min_groups:
-                x_rep = np.repeat(x, count, axis=0)
+                y_rep = np.repeat(y, count, axis=0)
                 flat = psi.reshape(nodes * count, k)
                 for group in block.min_groups:
-                    g, _ = group.pieces(x_rep, flat)
+                    g, _ = group.pieces(y_rep, flat)
                     value -= g.reshape(nodes, count, -1).min(axis=2)
             return value
 
         psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples)
-        h = np.maximum(0.0, ell(psi[:, None, :])[:, 0])
-        max_parts = [
-            _Piece(np.einsum("nqk,nk->nq", f, psi), np.einsum("nqkd,nk->nqd", jac, psi)) for f, jac in maxes
-        ]
-        min_parts = [_Piece(*self._min_group(block, group, x, psi)) for group in block.min_groups]
-        return _BlockState(h, psi, max_parts, min_parts)
+        return self._side(block, y, z, psi, maxes)
 
     def _check(self, label: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
         array = np.asarray(array)

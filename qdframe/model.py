@@ -61,27 +61,71 @@ class MinGroup:
 
 
 @dataclass(frozen=True)
+class SignTerm:
+    """a(y)·Sgn(s(y)), Filippov's set-valued sign term (paper Section 5): {a·sign s} for
+    s ≠ 0 and a·[−1, 1] at s = 0, with the amplitude a(y) = Σ_i max_q a_iq(y) ≥ 0.
+
+    `amplitude` is a constant a ≥ 0 or a tuple of groups, each `pieces(y)` returning
+    values (N, m) and gradients (N, m, n + m) (|y_i| is the group {y_i, −y_i}: see
+    :func:`abs_sum`). `switch(y)` returns s (N,) and ∇s (N, n + m).
+
+    The solver uses the support function a(y)·κ_ψ(s) with κ_ψ(s) = clip(1 + 2ψs/β, −1, 1): the whole interval a·[−1, 1] at
+    s = 0, a·sign(s) for |s| ≥ β, shrinking linearly in between. It contains
+    Filippov's set, is continuous in s (no jump for the descent to stall on) and is
+    exact for β = 0, which the simulator uses. Only for one-coordinate blocks.
+    """
+
+    amplitude: float | tuple[Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], ...]
+    switch: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    band: float = 1e-3
+    name: str = "sgn"
+
+
+def abs_sum(indices: Sequence[int], scale: float, width: int) -> tuple[Callable, ...]:
+    """Amplitude groups for scale·Σ_{i ∈ indices} |y_i| (each |y_i| = max{y_i, −y_i});
+    `width` is the number of columns of y (n + m)."""
+
+    def group(i: int) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            grads = np.zeros((y.shape[0], 2, width))
+            grads[:, 0, i], grads[:, 1, i] = scale, -scale
+            return np.stack([scale * y[:, i], -scale * y[:, i]], axis=1), grads
+
+        return pieces
+
+    return tuple(group(i) for i in indices)
+
+
+@dataclass(frozen=True)
 class SetBlock:
-    """The set F_b(x) of the coordinates `coords` of z, via its support function."""
+    """The set F_b(x) of the coordinates `coords` of z, via its support function:
+    c(F_b, ψ) = Σ max-groups + Σ min-groups (+ Σ sign terms for one coordinate)."""
 
     coords: tuple[int, ...]
     max_groups: tuple[MaxGroup, ...] = ()
     min_groups: tuple[MinGroup, ...] = ()
     name: str = ""
+    signs: tuple[SignTerm, ...] = ()
 
     @property
     def size(self) -> int:
         return len(self.coords)
 
     @classmethod
-    def equation(cls, coord: int, rhs: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], name: str = "") -> "SetBlock":
-        """The exact equation z_coord = rhs(x); rhs returns values (N,) and gradients (N, n)."""
+    def equation(
+        cls,
+        coord: int,
+        rhs: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+        name: str = "",
+        signs: tuple[SignTerm, ...] = (),
+    ) -> "SetBlock":
+        """z_coord = rhs(y) (+ Σ sign terms); rhs returns values (N,) and gradients (N, n + m)."""
 
         def pieces(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             value, grad = rhs(x)
             return value[:, None, None], grad[:, None, None, :]
 
-        return cls((coord,), (MaxGroup(pieces, name or f"z{coord}"),), (), name)
+        return cls((coord,), (MaxGroup(pieces, name or f"z{coord}"),), (), name, signs)
 
 
 @dataclass(frozen=True)
@@ -176,6 +220,12 @@ class InclusionModel(ABC):
         return None
 
     def _check_blocks(self) -> None:
+        for block in self.blocks():
+            if block.signs and block.size != 1:
+                raise InputError(f"{type(self).__name__}.blocks", "sign terms only in one-coordinate blocks", block.coords)
+            for term in block.signs:
+                if not (np.isfinite(term.band) and term.band >= 0):
+                    raise InputError(f"{type(self).__name__} sign term {term.name!r} band", "a number ≥ 0", term.band)
         covered = sorted(c for block in self.blocks() for c in block.coords)
         if covered != list(range(self.n_states)):
             raise InputError(

@@ -35,21 +35,27 @@ Method (active-set enumeration, vectorized over the batch)
    a generator need no special treatment. Patterns with more free directions than
    the dimension d are skipped for the same reason.
 4. A candidate is feasible when its λ ≥ −tiny. Among feasible candidates a row
-   prefers one that satisfies the optimality (KKT) condition — in every group,
-   <a_gp, y> for p in the support equals the minimum of <a_gq, y> over the active
-   q — and among those the smallest ‖y‖. Single-vertex patterns are always
-   feasible, so every row gets an answer; the exact optimum is feasible and
-   satisfies KKT, so it wins.
+   prefers one that passes the optimality (KKT) check, and among those the
+   smallest ‖y‖. The check is normalized: for every group, supported p and active
+   q, the slope <a_gp − a_gq, y> / ‖a_gp − a_gq‖ must be ≤ ~1e-12 (scaled units).
+   Unlike the plain gap <a_gp − a_gq, y>, or a comparison of norms, this does not
+   lose a nearby better point on a tiny edge (nearly equal generators), where the
+   norms differ only below rounding. Single-vertex patterns are always feasible, so
+   every row gets an answer; the exact optimum is feasible and passes the check,
+   so it wins.
 
 The loop runs over patterns, never over rows. The number of patterns is
 Π_g (2^{m_g} − 1) before the dimension cut; when it exceeds :data:`PATTERN_CAP`
 the solver falls back to a batched accelerated projected gradient method (FISTA
-with adaptive restart and a vectorized simplex projection) followed by an exact
-*polish*: the least-squares solve above on the support the iteration found (for
-a few support thresholds), keeping per row the best candidate by the same rule.
-The polish is exact whenever the iteration identified the optimal support, which
-it does for all but nearly degenerate rows; otherwise the iterate itself (a
-feasible point, ‖y‖² within the duality gap of the optimum) is returned.
+with adaptive restart and a vectorized simplex projection). After 25, 50, 100, ...
+iterations it *polishes* the rows still running: the exact least-squares solve
+above on the support the iteration found (for a few support thresholds). Rows
+whose polished weights pass the optimality check are final and stop iterating;
+so does a row whose iterate itself passes a 100 times stricter check (the typical
+case when the origin lies inside the set and λ is not unique). A row not
+certified after 3000 iterations keeps its best candidate: feasible, but only
+approximately optimal. That needs a support the iteration cannot identify, i.e.
+nearly degenerate data.
 """
 
 from __future__ import annotations
@@ -66,10 +72,11 @@ PATTERN_CAP = 4096
 
 _RANK_RTOL = 1e-10  # a direction counts as dependent below this relative residual
 _RANK_ATOL = 1e-14  # ... or below this absolute one (scaled rows have |entries| ≤ 1)
-_FEASIBILITY_TOL = 1e-10  # λ ≥ −this counts as feasible
-_KKT_TOL = 1e-11  # tolerance of the normalized optimality check (a length, scaled rows)
-_FALLBACK_CHUNK = 50  # iterations between two polishing attempts
-_FALLBACK_ROUNDS = 60
+_FEASIBILITY_TOL = 1e-12  # λ ≥ −this counts as feasible
+_KKT_TOL = 1e-12  # tolerance of the normalized optimality check (a length, scaled rows)
+_ITERATE_KKT_TOL = 1e-14  # the same for an iterate of the fallback (not an exact solve)
+_FALLBACK_ITERATIONS = 3000
+_FALLBACK_FIRST_CHUNK = 25  # iterations before the first polish; doubled after each
 _POLISH_THRESHOLDS = (0.0, 1e-9, 1e-6, 1e-3)
 
 Pattern = tuple[tuple[int, ...], ...]  # one nonempty tuple of entry indices per group
@@ -148,7 +155,7 @@ def _scaled_batch_last(
         raise InputError("generators", "finite values at the active (mask True) entries")
     largest = np.maximum(np.abs(c).max(axis=0, initial=0.0), np.abs(a).max(axis=(0, 1, 2), initial=0.0))
     _, exponent = np.frexp(np.where(largest > 0.0, largest, 1.0))
-    scale = np.ldexp(1.0, exponent)
+    scale = np.ldexp(1.0, np.minimum(exponent, 1023))  # 2^1024 would overflow
     c /= scale
     a /= scale
     return c, a, active, scale
@@ -287,18 +294,11 @@ class _Incumbent:
         y: np.ndarray,
         support: np.ndarray,
         valid: np.ndarray,
-        exact: bool = True,
+        tolerance: float = _KKT_TOL,
     ) -> None:
-        """Candidate weights λ with point y = c + Σ λ a and support (G, m) or (G, m, B).
-
-        An inexact candidate (an iterate) never counts as optimal: it wins only where no
-        exact candidate passes the optimality check.
-        """
+        """Candidate weights λ with point y = c + Σ λ a and support (G, m) or (G, m, B)."""
         objective = np.einsum("db,db->b", y, y)
-        if exact:
-            optimal = _kkt_violation(a, active, y, support) <= _KKT_TOL
-        else:
-            optimal = np.zeros_like(valid)
+        optimal = _kkt_violation(a, active, y, support) <= tolerance
         better = valid & ((optimal & ~self.optimal) | ((optimal == self.optimal) & (objective < self.objective)))
         np.copyto(self.weights, lam, where=better)
         np.copyto(self.objective, objective, where=better)
@@ -348,35 +348,38 @@ def _cleaned(lam: np.ndarray, active: np.ndarray) -> np.ndarray:
 def _iterate_and_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
     """Too many patterns: accelerated projected gradient with exact polishing.
 
-    Every `_FALLBACK_CHUNK` iterations the pending rows are polished; rows whose
-    polished weights pass the optimality check are final and leave the iteration.
+    After 25, 50, 100, ... iterations (doubling, `_FALLBACK_ITERATIONS` in all) the
+    pending rows are polished; rows whose weights pass the optimality check are final
+    and leave the iteration. Rows never certified keep their best candidate.
     """
     weights = np.zeros(active.shape)
     pending = np.arange(active.shape[-1])
     fista = _Fista.start(c, a, active)
-    for round_ in range(_FALLBACK_ROUNDS):
-        fista.run(_FALLBACK_CHUNK)
+    done_iterations, chunk = 0, _FALLBACK_FIRST_CHUNK
+    while pending.size:
+        chunk = min(chunk, _FALLBACK_ITERATIONS - done_iterations)
+        fista.run(chunk)
+        done_iterations += chunk
         rows = (Ellipsis, pending)
         best = _polished(c[rows], a[rows], active[rows], fista.lam)
-        done = best.optimal | (round_ == _FALLBACK_ROUNDS - 1)
+        done = best.optimal | (done_iterations >= _FALLBACK_ITERATIONS)
         weights[..., pending[done]] = best.weights[..., done]
         pending = pending[~done]
-        if not pending.size:
-            break
         fista.keep(~done)
+        chunk *= 2
     return _cleaned(weights, active)
 
 
 def _polished(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> _Incumbent:
-    """Best of an iterate λ and the exact solves on its support for a few thresholds."""
-    rows = lam.shape[-1]
+    """Best of the exact solves on the support of an iterate λ (for a few thresholds)
+    and, where none of them passes the optimality check, the iterate itself."""
     best = _Incumbent.empty(lam.shape)
-    best.offer(a, active, lam, _point(c, a, lam), lam > 0.0, np.ones(rows, dtype=bool), exact=False)
     for threshold in _POLISH_THRESHOLDS:
         support = active & (lam > threshold * lam.max(axis=1, keepdims=True))
         polished = _solve_on_support(c, a, support)
         feasible = (polished >= -_FEASIBILITY_TOL).all(axis=(0, 1))
         best.offer(a, active, polished, _point(c, a, polished), support, feasible)
+    best.offer(a, active, lam, _point(c, a, lam), lam > 0.0, ~best.optimal, _ITERATE_KKT_TOL)
     return best
 
 

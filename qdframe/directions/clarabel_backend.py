@@ -1,0 +1,79 @@
+"""The `clarabel` direction: all min-norm QPs of a direction in one sparse Clarabel problem.
+
+The rows are stacked block-diagonally (:class:`~qdframe.directions.qp.BlockQP`; in
+chunks of `chunk_rows` rows, 0 = all at once) as A x + s = b with s in
+ZeroCone(equalities) × NonnegativeCone(λ). The solver is built once per shape and chunk
+(presolve off, structural zeros kept, so that ``is_data_update_allowed()``); later
+directions only replace the values of A and b with ``update(A=..., b=...)``. Clarabel is
+an interior-point method and takes no warm start. Tolerances are tight; any status but
+``Solved`` (e.g. ``AlmostSolved``, ``MaxIterations``) is a failure of every row of the
+chunk, and every row is then checked as :mod:`qdframe.directions.qp` describes. Needs
+``pip install 'qdframe[clarabel]'``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .qp import BlockQP, QPDirection, chunks, require
+
+
+@dataclass(frozen=True)
+class ClarabelDirection(QPDirection):
+    """Min-norm QPs by Clarabel (interior point), stacked into one sparse conic QP."""
+
+    name = "clarabel"
+    tol_gap_abs: float = 1e-14
+    tol_gap_rel: float = 1e-14
+    tol_feas: float = 1e-13
+    tol_ktratio: float = 1e-12
+    max_iter: int = 200
+    chunk_rows: int = 0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        require("clarabel", self.label, "'qdframe[clarabel]'")
+
+    def solve_scaled(self, c: np.ndarray, a: np.ndarray, persistent: bool = True) -> tuple[np.ndarray, list[str | None]]:
+        clarabel = require("clarabel", self.label, "'qdframe[clarabel]'")
+        rows, groups, width, dim = a.shape
+        lam = np.empty((rows, groups, width))
+        status: list[str | None] = [None] * rows
+        for index, part in enumerate(chunks(rows, self.chunk_rows)):
+            size = part.stop - part.start
+            key = ("clarabel", index, size, groups, width, dim)
+            (structure, solver), fresh = self.cached(key, lambda: self._setup(clarabel, c[part], a[part]), persistent)
+            if not fresh:
+                solver.update(A=structure.A_data(a[part]), b=_rhs(structure, c[part]))
+            solution = solver.solve()
+            if solution.status != clarabel.SolverStatus.Solved:
+                status[part] = [str(solution.status)] * size
+            lam[part] = structure.weights(np.asarray(solution.x, dtype=float))
+        return lam, status
+
+    def _setup(self, clarabel, c: np.ndarray, a: np.ndarray):
+        structure = BlockQP.build(*a.shape, bound_sign=-1)
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        settings.presolve_enable = False
+        settings.input_sparse_dropzeros = False
+        settings.tol_gap_abs = self.tol_gap_abs
+        settings.tol_gap_rel = self.tol_gap_rel
+        settings.tol_feas = self.tol_feas
+        settings.tol_ktratio = self.tol_ktratio
+        settings.max_iter = self.max_iter
+        cones = [
+            clarabel.ZeroConeT(structure.n_equalities),
+            clarabel.NonnegativeConeT(structure.n_constraints - structure.n_equalities),
+        ]
+        solver = clarabel.DefaultSolver(
+            structure.P, np.zeros(structure.n_variables), structure.A(a), _rhs(structure, c), cones, settings
+        )
+        return structure, solver
+
+
+def _rhs(structure: BlockQP, c: np.ndarray) -> np.ndarray:
+    """b: the equality rows' right-hand side, then 0 for −λ + s = 0."""
+    return np.concatenate([structure.equality_rhs(c), np.zeros(structure.n_constraints - structure.n_equalities)])

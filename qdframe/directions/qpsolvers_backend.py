@@ -1,0 +1,154 @@
+"""The `qpsolvers:NAME` direction: the min-norm QPs by any solver qpsolvers knows.
+
+``qpsolvers:daqp``, ``qpsolvers:proxqp``, ``qpsolvers:highs``, ``qpsolvers:piqp``, … The
+QPs are passed to ``qpsolvers.solve_problem`` `rows_per_qp` rows at a time, stacked
+block-diagonally (:class:`~qdframe.directions.qp.BlockQP`, with λ ≥ 0 as variable
+bounds): dense matrices for a dense-only solver, CSC for the others. With
+``rows_per_qp = 0`` the choice is the measured faster one: one QP per row for daqp
+(a dense active-set solver, whose work grows fast with the stack), one stacked sparse QP
+for every other solver. Each solver gets tight tolerances (``DEFAULT_SETTINGS``, which
+`settings` overrides); a solution that is not ``found`` or a solver exception is a
+failure of the rows of that QP, and every row is checked as :mod:`qdframe.directions.qp`
+describes. Solvers that require a positive definite Hessian (quadprog, ecos) refuse this
+exact formulation (its Hessian is singular in λ); such a failure is reported, never
+hidden. Needs ``pip install 'qdframe[qpsolvers]'`` and the solver's own package.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from .qp import BlockQP, QPDirection, require
+
+DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
+    "daqp": {"primal_tol": 1e-12, "eps_prox": 1e-3, "eta_prox": 1e-14},
+    "proxqp": {"eps_abs": 1e-13, "eps_rel": 0.0, "check_duality_gap": True, "eps_duality_gap_abs": 1e-14},
+    "piqp": {"eps_abs": 1e-12, "eps_rel": 0.0, "eps_duality_gap_abs": 1e-13, "eps_duality_gap_rel": 0.0},
+    "clarabel": {"tol_gap_abs": 1e-14, "tol_gap_rel": 1e-14, "tol_feas": 1e-13, "tol_ktratio": 1e-12},
+    "osqp": {"eps_abs": 1e-10, "eps_rel": 1e-10, "polishing": True, "max_iter": 100_000},
+    "highs": {"primal_feasibility_tolerance": 1e-12, "dual_feasibility_tolerance": 1e-12, "qp_regularization_value": 0.0},
+    "scs": {"eps_abs": 1e-12, "eps_rel": 1e-12, "max_iters": 100_000},
+    "cvxopt": {"abstol": 1e-14, "reltol": 1e-14, "feastol": 1e-12},
+}
+"""High-accuracy settings per qpsolvers solver name (others get the solver's defaults)."""
+
+_ONE_QP_PER_ROW = {"daqp", "quadprog", "qpoases", "qpswift", "pyqpmad"}  # dense active-set solvers
+
+
+@dataclass(frozen=True)
+class QpsolversDirection(QPDirection):
+    """Min-norm QPs by a qpsolvers solver: the name `qpsolvers:NAME` (e.g. qpsolvers:daqp)."""
+
+    name = "qpsolvers:"
+    solver: str = "daqp"
+    rows_per_qp: int = 0
+    settings: tuple[tuple[str, Any], ...] = ()
+
+    @classmethod
+    def from_name(cls, name: str) -> "QpsolversDirection":
+        """`qpsolvers:NAME` → the direction with solver NAME."""
+        _, _, solver = name.partition(":")
+        return cls(solver=solver)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        qpsolvers = require("qpsolvers", self.label, "'qdframe[qpsolvers]'")
+        if self.solver not in qpsolvers.available_solvers:
+            known = sorted(n[: -len("_solve_problem")] for n in dir(qpsolvers.solvers) if n.endswith("_solve_problem"))
+            if self.solver in known:
+                require(self.solver, self.label, f"'qpsolvers[{self.solver}]'")  # raises: the solver's own package
+                raise InputError(
+                    "direction", f"qpsolvers:NAME with NAME an installed solver: {', '.join(qpsolvers.available_solvers)}",
+                    self.label,
+                )
+            raise InputError(
+                "direction", f"qpsolvers:NAME with NAME one of: {', '.join(qpsolvers.available_solvers)}", self.label
+            )
+        if isinstance(self.rows_per_qp, bool) or not isinstance(self.rows_per_qp, int) or self.rows_per_qp < 0:
+            raise InputError("rows_per_qp", "an integer ≥ 0 (0: the measured default)", self.rows_per_qp)
+
+    @property
+    def label(self) -> str:
+        return f"qpsolvers:{self.solver}"
+
+    @property
+    def dense(self) -> bool:
+        """Whether the solver gets dense matrices (it takes no sparse ones)."""
+        qpsolvers = require("qpsolvers", self.label, "'qdframe[qpsolvers]'")
+        return self.solver not in qpsolvers.sparse_solvers
+
+    def solve_scaled(self, c: np.ndarray, a: np.ndarray, persistent: bool = True) -> tuple[np.ndarray, list[str | None]]:
+        qpsolvers = require("qpsolvers", self.label, "'qdframe[qpsolvers]'")
+        rows, groups, width, dim = a.shape
+        per_qp = self.rows_per_qp or (1 if self.solver in _ONE_QP_PER_ROW else rows)
+        per_qp = min(per_qp, rows)
+        count = -(-rows // per_qp)
+        padded = count * per_qp  # the last QP is padded with rows c = 0, a = 0 (solution p = 0)
+        c_all = np.zeros((padded, dim))
+        c_all[:rows] = c
+        a_all = np.zeros((padded, groups, width, dim))
+        a_all[:rows] = a
+        (structure, rows_idx, cols_idx), _ = self.cached(
+            ("qpsolvers", per_qp, groups, width, dim), lambda: _structure(per_qp, groups, width, dim), persistent
+        )
+        shape = (structure.n_equalities, structure.n_variables)
+        data = np.broadcast_to(structure.template, (count, structure.template.size)).copy()
+        data[:, structure.generator_slots] = (
+            -a_all.reshape(count, per_qp, -1, dim).transpose(0, 1, 3, 2).reshape(count, -1)
+        )
+        rhs = np.concatenate([c_all, np.ones((padded, groups))], axis=1).reshape(count, -1)
+        dense = self.dense
+        if dense:
+            matrices = np.zeros((count,) + shape)
+            matrices[:, rows_idx, cols_idx] = data
+            P = structure.P.toarray()
+        else:
+            P = structure.P
+        q = np.zeros(structure.n_variables)
+        lower = structure.lower_bounds()
+        settings = {**DEFAULT_SETTINGS.get(self.solver, {}), **dict(self.settings)}
+        lam = np.empty((padded, groups, width))
+        status: list[str | None] = [None] * padded
+        for i in range(count):
+            part = slice(i * per_qp, (i + 1) * per_qp)
+            A = matrices[i] if dense else _csc(structure, data[i], shape)
+            problem = qpsolvers.Problem(P, q, None, None, A, rhs[i], lower, None)
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    solution = qpsolvers.solve_problem(problem, solver=self.solver, **settings)
+            except Exception as exc:  # a solver that refuses the problem: a failure of these rows
+                status[part] = [f"error {type(exc).__name__}: {exc}"] * per_qp
+                lam[part] = np.nan
+                continue
+            if not solution.found or solution.x is None:
+                status[part] = [_not_found(solution)] * per_qp
+                lam[part] = np.nan
+                continue
+            lam[part] = structure.weights(np.asarray(solution.x, dtype=float))
+        return lam[:rows], status[:rows]
+
+
+def _structure(rows: int, groups: int, width: int, dim: int) -> tuple[BlockQP, np.ndarray, np.ndarray]:
+    """The equality-only block QP and the (row, column) of each of its A entries (CSC order)."""
+    structure = BlockQP.build(rows, groups, width, dim, bound_sign=0)
+    columns = np.repeat(np.arange(structure.n_variables), np.diff(structure.indptr))
+    return structure, structure.indices, columns
+
+
+def _csc(structure: BlockQP, data: np.ndarray, shape: tuple[int, int]):
+    import scipy.sparse as sp
+
+    return sp.csc_matrix((data, structure.indices, structure.indptr), shape=shape)
+
+
+def _not_found(solution: Any) -> str:
+    """A qpsolvers Solution that was not found, as a status text with the solver's own status if any."""
+    info = (getattr(solution, "extras", None) or {}).get("info")
+    detail = getattr(info, "status", None)
+    return "not found" + (f" ({detail})" if detail is not None else "")
