@@ -250,7 +250,7 @@ class Functional:
         # υ (4.55): x-part r_k, z-part −(Cᵀ w r)_k / w_k
         r = self._consistency(x, z)
         smooth[:, :n] += r
-        smooth[:, n:] -= self.grid.cumulative_adjoint(w[:, None] * r) / w[:, None]
+        smooth[:, n : 2 * n] -= self.grid.cumulative_adjoint(w[:, None] * r) / w[:, None]
         # χ (4.44): the end residual on the fixed coordinates' z, at every node
         if self.end.size:
             smooth[:, n + self.end] += self._end_residual(z)
@@ -412,10 +412,12 @@ class Functional:
         else:
             groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
             amplitude = sum(piece.values.max(axis=1) for piece in groups)
-        if term.band > 0:
-            ramp = 1.0 + 2.0 * psi * s / term.band
-            kappa = np.clip(ramp, -1.0, 1.0)
-            slope = np.where(np.abs(ramp) < 1.0, 2.0 * psi / term.band, 0.0)
+        if np.isinf(term.band):  # the whole interval everywhere (a term on its own surface)
+            kappa, slope = np.ones_like(s), np.zeros_like(s)
+        elif term.band > 0:  # κ = 1 − 2·S(u), u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³ (C¹)
+            u = np.clip(-psi * s / term.band, 0.0, 1.0)
+            kappa = 1.0 - 2.0 * u * u * (3.0 - 2.0 * u)
+            slope = 12.0 * u * (1.0 - u) * psi / term.band
         else:  # exact Filippov sign: the whole interval only at s = 0
             kappa = np.where(psi * s >= 0, 1.0, -1.0)
             slope = np.zeros_like(s)

@@ -69,10 +69,13 @@ class SignTerm:
     values (N, m) and gradients (N, m, n + m) (|y_i| is the group {y_i, −y_i}: see
     :func:`abs_sum`). `switch(y)` returns s (N,) and ∇s (N, n + m).
 
-    The solver uses the support function a(y)·κ_ψ(s) with κ_ψ(s) = clip(1 + 2ψs/β, −1, 1): the whole interval a·[−1, 1] at
-    s = 0, a·sign(s) for |s| ≥ β, shrinking linearly in between. It contains
-    Filippov's set, is continuous in s (no jump for the descent to stall on) and is
-    exact for β = 0, which the simulator uses. Only for one-coordinate blocks.
+    The solver uses the support function a(y)·κ_ψ(s) with κ_ψ(s) = 1 − 2·S(u),
+    u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³: the whole interval a·[−1, 1] at s = 0,
+    a·sign(s) for |s| ≥ β, shrinking smoothly in between. It contains Filippov's set,
+    is C¹ in s (no jump for the descent to stall on, no kink for Gauss–Newton) and is
+    exact for β = 0, which the simulator uses. β = inf keeps the whole interval
+    a·[−1, 1] everywhere: the paper's form on the discontinuity surface s = 0, exact
+    when the model's surface enforces s = 0. Only for one-coordinate blocks.
     """
 
     amplitude: float | tuple[Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], ...]
@@ -224,7 +227,7 @@ class InclusionModel(ABC):
             if block.signs and block.size != 1:
                 raise InputError(f"{type(self).__name__}.blocks", "sign terms only in one-coordinate blocks", block.coords)
             for term in block.signs:
-                if not (np.isfinite(term.band) and term.band >= 0):
+                if not (term.band >= 0):  # NaN fails too; inf is allowed
                     raise InputError(f"{type(self).__name__} sign term {term.name!r} band", "a number ≥ 0", term.band)
         covered = sorted(c for block in self.blocks() for c in block.coords)
         if covered != list(range(self.n_states)):

@@ -44,7 +44,7 @@ class GaussNewton(DirectionSolver):
     """Levenberg–Marquardt steps on the residuals behind I, in the L² metric.
 
     mu: the initial damping μ; mu_min/mu_max bound it. The solver keeps μ between
-    iterations (`start` resets it for each solve): it shrinks by 3 after a full step
+    iterations (`start` resets it for each solve): it shrinks by 10 after a full step
     that achieved more than 3/4 of the predicted decrease, doubles after one below 1/4,
     and grows by 2/γ when the line search cut the step to γ < 1/2.
     """
@@ -83,7 +83,7 @@ class GaussNewton(DirectionSolver):
         if gamma < 0.5:  # the line search cut the step: the LM step scales like 1/μ
             state["mu"] = min(state["mu"] * 2.0 / max(gamma, 1e-6), self.mu_max)
         elif ratio > 0.75:
-            state["mu"] = max(state["mu"] / 3.0, self.mu_min)
+            state["mu"] = max(state["mu"] / 10.0, self.mu_min)
         elif ratio < 0.25:
             state["mu"] = min(state["mu"] * 2.0, self.mu_max)
 

@@ -46,16 +46,14 @@ Method (active-set enumeration, vectorized over the batch)
 
 The loop runs over patterns, never over rows. The number of patterns is
 Π_g (2^{m_g} − 1) before the dimension cut; when it exceeds :data:`PATTERN_CAP`
-the solver falls back to a batched accelerated projected gradient method (FISTA
-with adaptive restart and a vectorized simplex projection). After 25, 50, 100, ...
-iterations it *polishes* the rows still running: the exact least-squares solve
-above on the support the iteration found (for a few support thresholds). Rows
-whose polished weights pass the optimality check are final and stop iterating;
-so does a row whose iterate itself passes a 100 times stricter check (the typical
-case when the origin lies inside the set and λ is not unique). A row not
-certified after 3000 iterations keeps its best candidate: feasible, but only
-approximately optimal. That needs a support the iteration cannot identify, i.e.
-nearly degenerate data.
+the solver falls back to an iterative method, still batched over rows: a few
+accelerated projected gradient iterations (FISTA with adaptive restart and a
+vectorized simplex projection) give feasible weights close to optimal, and an
+exact *polish* finishes from there: Wolfe's primal active-set method, each step
+being the least-squares solve of step 3 on a per-row support. It ends when every
+row passes the optimality check of step 4, so the fallback is exact as well; only
+round-off cycling on nearly degenerate data can hit its step cap, and such a row
+keeps feasible, nearly optimal weights.
 """
 
 from __future__ import annotations
@@ -74,10 +72,8 @@ _RANK_RTOL = 1e-10  # a direction counts as dependent below this relative residu
 _RANK_ATOL = 1e-14  # ... or below this absolute one (scaled rows have |entries| ≤ 1)
 _FEASIBILITY_TOL = 1e-12  # λ ≥ −this counts as feasible
 _KKT_TOL = 1e-12  # tolerance of the normalized optimality check (a length, scaled rows)
-_ITERATE_KKT_TOL = 1e-14  # the same for an iterate of the fallback (not an exact solve)
-_FALLBACK_ITERATIONS = 3000
-_FALLBACK_FIRST_CHUNK = 25  # iterations before the first polish; doubled after each
-_POLISH_THRESHOLDS = (0.0, 1e-9, 1e-6, 1e-3)
+_FALLBACK_ITERATIONS = 30  # gradient iterations that warm-start the active-set polish
+_POLISH_STEPS = 500  # cap on active-set steps (each one decreases ‖y‖ or the support)
 
 Pattern = tuple[tuple[int, ...], ...]  # one nonempty tuple of entry indices per group
 
@@ -287,18 +283,11 @@ class _Incumbent:
         return cls(np.zeros(shape), np.full(rows, np.inf), np.zeros(rows, dtype=bool))
 
     def offer(
-        self,
-        a: np.ndarray,
-        active: np.ndarray,
-        lam: np.ndarray,
-        y: np.ndarray,
-        support: np.ndarray,
-        valid: np.ndarray,
-        tolerance: float = _KKT_TOL,
+        self, a: np.ndarray, active: np.ndarray, lam: np.ndarray, y: np.ndarray, support: np.ndarray, valid: np.ndarray
     ) -> None:
-        """Candidate weights λ with point y = c + Σ λ a and support (G, m) or (G, m, B)."""
+        """Candidate weights λ with point y = c + Σ λ a and support (G, m)."""
         objective = np.einsum("db,db->b", y, y)
-        optimal = _kkt_violation(a, active, y, support) <= tolerance
+        optimal = _kkt_violation(a, active, y, support) <= _KKT_TOL
         better = valid & ((optimal & ~self.optimal) | ((optimal == self.optimal) & (objective < self.objective)))
         np.copyto(self.weights, lam, where=better)
         np.copyto(self.objective, objective, where=better)
@@ -306,33 +295,39 @@ class _Incumbent:
 
 
 def _kkt_violation(a: np.ndarray, active: np.ndarray, y: np.ndarray, support: np.ndarray) -> np.ndarray:
-    """Largest normalized KKT violation of every row: (B,).
+    """Largest normalized KKT violation of every row: (B,), see :func:`_slopes`."""
+    return _slopes(a, active, y, support).max(axis=(0, 1))
 
-    The maximum over groups g, supported p and active q of the slope
+
+def _slopes(a: np.ndarray, active: np.ndarray, y: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """Normalized KKT violations (G, m, B), ≥ 0, of moving weight onto every unsupported q.
+
+    Entry (g, q) is the maximum over supported p of the slope
     <a_gp − a_gq, y> / ‖a_gp − a_gq‖ with which ‖y‖²/2 decreases when weight moves
-    from p to q. It is 0 exactly at the optimum; unlike the unnormalized gap it does
-    not vanish for a short edge, so a vertex next to a nearby better point on a tiny
+    from p to q (0 where q is supported or inactive). At the optimum all are 0; the
+    supported entries need no check, as every candidate is the minimizer on the
+    affine hull of its support. Unlike the plain gap <a_gp − a_gq, y> this does not
+    vanish for a short edge, so a vertex next to a nearby better point on a tiny
     edge is not mistaken for optimal. The differences are taken before the inner
     product, which keeps them accurate for nearly equal generators.
-    support: (G, m) for one pattern, whose candidate is stationary on its support by
-    construction (only unsupported q are checked), or (G, m, B) per row (all q).
+    support: (G, m) for one pattern or (G, m, B) per row.
     """
     groups, width = active.shape[:2]
-    worst = np.zeros(y.shape[-1])
+    worst = np.zeros(active.shape)
     for g, p, q in itertools.product(range(groups), range(width), range(width)):
-        if support.ndim == 2:
+        if support.ndim == 2:  # one pattern: decided without touching the rows
             if not support[g, p] or support[g, q]:
                 continue
             applies = active[g, q]
         else:
-            applies = support[g, p] & active[g, q]
-            if p == q or not applies.any():
+            applies = support[g, p] & active[g, q] & ~support[g, q]
+            if not applies.any():
                 continue
         edge = a[g, p] - a[g, q]
         length = np.sqrt(np.einsum("db,db->b", edge, edge))
         slope = np.einsum("db,db->b", edge, y)
         ratio = np.divide(slope, length, out=np.zeros_like(slope), where=length > 0.0)
-        worst = np.maximum(worst, np.where(applies, ratio, 0.0))
+        worst[g, q] = np.maximum(worst[g, q], np.where(applies, ratio, 0.0))
     return worst
 
 
@@ -346,41 +341,53 @@ def _cleaned(lam: np.ndarray, active: np.ndarray) -> np.ndarray:
 
 
 def _iterate_and_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """Too many patterns: accelerated projected gradient with exact polishing.
+    """Too many patterns: a few accelerated projected gradient iterations, then exact
+    active-set steps from the (feasible) iterate."""
+    lam = _Fista.start(c, a, active).run(_FALLBACK_ITERATIONS)
+    return _cleaned(_active_set_polish(c, a, active, lam), active)
 
-    After 25, 50, 100, ... iterations (doubling, `_FALLBACK_ITERATIONS` in all) the
-    pending rows are polished; rows whose weights pass the optimality check are final
-    and leave the iteration. Rows never certified keep their best candidate.
+
+def _active_set_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Wolfe's primal active-set method, batched over rows, from feasible weights λ.
+
+    Each step solves the least-squares problem on the current support S (dependent
+    directions dropped). If that target has negative weights the row moves from λ
+    towards it as far as feasibility allows and drops the blocking entries (a minor
+    cycle); otherwise λ becomes the target and, unless it passes the optimality check,
+    the unsupported entry with the steepest descent slope joins S (a major cycle). A
+    row is final when it passes the check; ‖y‖ decreases strictly, so this ends after
+    finitely many steps (`_POLISH_STEPS` guards against round-off cycling, after which
+    a row keeps its current feasible λ).
     """
-    weights = np.zeros(active.shape)
-    pending = np.arange(active.shape[-1])
-    fista = _Fista.start(c, a, active)
-    done_iterations, chunk = 0, _FALLBACK_FIRST_CHUNK
-    while pending.size:
-        chunk = min(chunk, _FALLBACK_ITERATIONS - done_iterations)
-        fista.run(chunk)
-        done_iterations += chunk
-        rows = (Ellipsis, pending)
-        best = _polished(c[rows], a[rows], active[rows], fista.lam)
-        done = best.optimal | (done_iterations >= _FALLBACK_ITERATIONS)
-        weights[..., pending[done]] = best.weights[..., done]
-        pending = pending[~done]
-        fista.keep(~done)
-        chunk *= 2
-    return _cleaned(weights, active)
+    groups, width, rows = lam.shape
+    lam = lam.copy()
+    support = lam > 0.0
+    pending = np.arange(rows)
+    for _ in range(_POLISH_STEPS):
+        at = (Ellipsis, pending)
+        current, supported = lam[at], support[at]
+        target = _solve_on_support(c[at], a[at], supported)
 
+        blocking = supported & (target < 0.0)
+        ratio = np.divide(current, current - target, out=np.full(current.shape, np.inf), where=blocking)
+        step = np.minimum(ratio.min(axis=(0, 1)), 1.0)
+        moved = current + step * (target - current)
+        moved = np.where(supported & (ratio > step) & (moved > 0.0), moved, 0.0)
+        moved /= moved.sum(axis=1, keepdims=True)
+        supported = moved > 0.0
 
-def _polished(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> _Incumbent:
-    """Best of the exact solves on the support of an iterate λ (for a few thresholds)
-    and, where none of them passes the optimality check, the iterate itself."""
-    best = _Incumbent.empty(lam.shape)
-    for threshold in _POLISH_THRESHOLDS:
-        support = active & (lam > threshold * lam.max(axis=1, keepdims=True))
-        polished = _solve_on_support(c, a, support)
-        feasible = (polished >= -_FEASIBILITY_TOL).all(axis=(0, 1))
-        best.offer(a, active, polished, _point(c, a, polished), support, feasible)
-    best.offer(a, active, lam, _point(c, a, lam), lam > 0.0, ~best.optimal, _ITERATE_KKT_TOL)
-    return best
+        slopes = _slopes(a[at], active[at], _point(c[at], a[at], moved), supported)
+        steepest = slopes.reshape(groups * width, -1).argmax(axis=0)
+        major = ~blocking.any(axis=(0, 1))
+        final = major & (slopes.max(axis=(0, 1)) <= _KKT_TOL)
+        joins = major & ~final
+        supported.reshape(groups * width, -1)[steepest[joins], np.flatnonzero(joins)] = True
+
+        lam[at], support[at] = moved, supported
+        pending = pending[~final]
+        if not pending.size:
+            break
+    return lam
 
 
 def _point(c: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -402,7 +409,7 @@ def _solve_on_support(c: np.ndarray, a: np.ndarray, support: np.ndarray) -> np.n
 
 @dataclass
 class _Fista:
-    """FISTA with adaptive restart on λ, for the rows still iterating.
+    """FISTA with adaptive restart on λ.
 
     It works on centered copies of the data (a_gp − mean_p a_gp, the mean moved into
     the center), which change nothing in the problem but shrink the step constant.
@@ -425,7 +432,8 @@ class _Fista:
         lam = active / count
         return cls(c + mean.sum(axis=0), centered, active, lipschitz, lam, lam, np.ones(c.shape[-1]))
 
-    def run(self, iterations: int) -> None:
+    def run(self, iterations: int) -> np.ndarray:
+        """Iterate and return the (feasible) weights."""
         for _ in range(iterations):
             gradient = np.einsum("gpdb,db->gpb", self.a, _point(self.c, self.a, self.extrapolated))
             new = _project_to_simplices(self.extrapolated - gradient / self.lipschitz, self.active)
@@ -435,11 +443,7 @@ class _Fista:
             self.momentum = np.where(restart, 1.0, following)
             self.extrapolated = new + beta * (new - self.lam)
             self.lam = new
-
-    def keep(self, rows: np.ndarray) -> None:
-        """Drop the rows that are done (rows: (B,) bool of those to keep)."""
-        for name in ("c", "a", "active", "lipschitz", "lam", "extrapolated", "momentum"):
-            setattr(self, name, getattr(self, name)[..., rows])
+        return self.lam
 
 
 def _project_to_simplices(v: np.ndarray, active: np.ndarray) -> np.ndarray:

@@ -1,0 +1,109 @@
+"""The paper's Example 7.3: three masses, dry friction, a sliding mode on x4 = 0.
+
+    x1' = x4,  x2' = x5,  x3' = x6
+    x4' ∈ −x1 + (x2 − x1) − x4 − 1.05·|x|·Sgn(x4)
+    x5' ∈ (x1 − x2) + (x3 − x2) − x5 − 0.3·Sgn(x5)
+    x6' ∈ (x2 − x3) − x6 − 0.3·Sgn(x6) + u
+
+|x| is the l1 norm Σ|x_i| (Section 5 writes it as Σ max{a x_i ψ, −a x_i ψ}). The sign
+terms are Filippov's set-valued Sgn. The trajectory must stay on the surface x4 = 0
+and bring the third mass to x3(1) = 0; u(t) is an unknown control. x(0) is the end
+of the reaching phase on [−0.2, 0] with u = 0 from x(−0.2) = (−1, 1, −1, −1, 1, 1),
+computed by the Filippov simulator (not the paper's rounded numbers).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from ..model import InclusionModel, SetBlock, SignTerm, Surface, abs_sum
+
+REACHING_START = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
+REACHING_TIME = 0.2
+FRICTION = 0.3
+GAIN = 1.05
+WIDTH = 7  # y = (x1, …, x6, u)
+
+
+def _linear(coefficients: dict[int, float]):
+    """y ↦ Σ c_i y_i with its gradient."""
+    gradient = np.zeros(WIDTH)
+    for index, value in coefficients.items():
+        gradient[index] = value
+
+    def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return y @ gradient, np.broadcast_to(gradient, y.shape).copy()
+
+    return rhs
+
+
+def _minus(index: int):
+    """The switch s = −y_index (a·Sgn(−v) = −a·Sgn(v))."""
+    gradient = np.zeros(WIDTH)
+    gradient[index] = -1.0
+
+    def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return -y[:, index], np.broadcast_to(gradient, y.shape).copy()
+
+    return switch
+
+
+def _on_surface(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    jac = np.zeros((x.shape[0], 1, 6))
+    jac[:, 0, 3] = 1.0
+    return x[:, 3:4], jac
+
+
+class Paper73(InclusionModel):
+    """Example 7.3: three masses with dry friction sliding on x4 = 0, control u, x3(1) = 0."""
+
+    name = "paper-7.3"
+    description = "Example 7.3: three masses, dry friction, sliding on x4 = 0, unknown control u"
+    state_names = ("x1", "x2", "x3", "x4", "x5", "x6")
+    control_names = ("u",)
+    default_T = 1.0
+    end_indices = (2,)
+    default_end_values = (0.0,)
+    band = 1e-3  # the band β of the friction sign terms Sgn(x5), Sgn(x6)
+    # On the surface x4 = 0 the paper takes x4' ∈ … + 1.05|x|·[−1, 1] (Filippov's set):
+    # band inf; the surface term ω enforces x4 = 0, where this is exact.
+    surface_band = float("inf")
+
+    def __init__(self, T=None, x0=None, end_values=None) -> None:
+        if x0 is None:
+            x0 = reaching_phase_end()
+        super().__init__(T, x0, end_values)
+
+    def blocks(self) -> tuple[SetBlock, ...]:
+        beta = self.band
+        return (
+            SetBlock.equation(0, _linear({3: 1.0}), "x1' = x4"),
+            SetBlock.equation(1, _linear({4: 1.0}), "x2' = x5"),
+            SetBlock.equation(2, _linear({5: 1.0}), "x3' = x6"),
+            SetBlock.equation(3, _linear({0: -2.0, 1: 1.0, 3: -1.0}), "x4'",
+                              (SignTerm(abs_sum(range(6), GAIN, WIDTH), _minus(3), self.surface_band,
+                                        "1.05|x|Sgn(x4)"),)),
+            SetBlock.equation(4, _linear({0: 1.0, 1: -2.0, 2: 1.0, 4: -1.0}), "x5'",
+                              (SignTerm(FRICTION, _minus(4), beta, "0.3 Sgn(x5)"),)),
+            SetBlock.equation(5, _linear({1: 1.0, 2: -1.0, 5: -1.0, 6: 1.0}), "x6'",
+                              (SignTerm(FRICTION, _minus(5), beta, "0.3 Sgn(x6)"),)),
+        )
+
+    def surface(self) -> Surface:
+        return Surface(_on_surface)
+
+    def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The paper's first approximation: x, z, u ≡ 0 (x(0) = x0 is fixed)."""
+        return np.zeros((t.size, 6)), np.zeros((t.size, 6))
+
+
+@lru_cache(maxsize=1)
+def reaching_phase_end() -> tuple[float, ...]:
+    """x(0) after the reaching phase [−0.2, 0] with u = 0 (Filippov simulation)."""
+    from ..simulate import simulate
+
+    model = Paper73(x0=REACHING_START)
+    run = simulate(model, -REACHING_TIME, 0.0, REACHING_START, dt=2e-4)
+    return tuple(float(v) for v in run.x[-1])
