@@ -1,4 +1,4 @@
-"""The `qdframe` command (DESIGN.md §5): `list` and `solve`.
+"""The `qdframe` command (DESIGN.md §5): `list`, `solve` and `simulate`.
 
 Bad input ends with one line naming the field and the expected form: exit status 2
 for usage errors, 1 for failures, and a traceback only with --debug.
@@ -54,6 +54,16 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not np.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
 def _vector(text: str) -> list[float]:
     try:
         values = [float(v) for v in text.split(",")]
@@ -89,6 +99,16 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
+
+    simulate = commands.add_parser("simulate", help="Filippov initial-value simulation of a model")
+    simulate.add_argument("model", help="model name (see `qdframe list`)")
+    simulate.add_argument("--from", dest="t_start", type=_finite_float, required=True, help="start time T0")
+    simulate.add_argument("--to", dest="t_end", type=_finite_float, required=True, help="end time T1 > T0")
+    simulate.add_argument("--x0", type=_vector, required=True, help="state at T0: V,V,... (write --x0=-1,1 for a leading minus)")
+    simulate.add_argument("--u", type=_vector, help="constant controls (default 0)")
+    simulate.add_argument("--dt", type=_positive_float, default=1e-4, help="time step (default 1e-4)")
+    simulate.add_argument("--json", metavar="FILE", help="write the trajectory as JSON")
+    simulate.add_argument("--quiet", action="store_true", help="print nothing but errors")
     return parser
 
 
@@ -99,6 +119,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "list":
             return _list(args)
+        if args.command == "simulate":
+            return _simulate(args)
         return _solve(args)
     except _UsageError as exc:
         print(exc, file=sys.stderr)
@@ -175,6 +197,23 @@ def _solve(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(result.summary())
     return 1 if result.status == "failed" else 0
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from .descent import load_model
+    from .simulate import simulate
+
+    if args.json:
+        _writable("--json", args.json)
+    model = load_model(args.model, x0=args.x0)
+    run = simulate(model, args.t_start, args.t_end, args.x0, dt=args.dt, controls=args.u)
+    if args.json:
+        run.to_json(args.json)
+    if not args.quiet:
+        names = run.state_names
+        print(f"{run.model}: t = {run.t[0]:g} → {run.t[-1]:g}, {len(run.t) - 1} steps of {run.dt:.3g}")
+        print("x(T1) = " + ", ".join(f"{n} {v:.6f}" for n, v in zip(names, run.x[-1])))
+    return 0
 
 
 def _progress_printer():

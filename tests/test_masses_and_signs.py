@@ -1,0 +1,146 @@
+"""Sign terms, controls, the Filippov simulator and Example 7.3."""
+
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe.cli import main
+from qdframe.functional import Functional
+from qdframe.grid import Grid
+from qdframe.model import InclusionModel, SetBlock, SignTerm, Surface, abs_sum
+from qdframe.simulate import simulate
+
+
+def _linear(coefficients, width):
+    gradient = np.zeros(width)
+    for index, value in coefficients.items():
+        gradient[index] = value
+    return lambda y: (y @ gradient, np.broadcast_to(gradient, y.shape).copy())
+
+
+def _switch(index, width, sign=-1.0):
+    gradient = np.zeros(width)
+    gradient[index] = sign
+    return lambda y: (sign * y[:, index], np.broadcast_to(gradient, y.shape).copy())
+
+
+class DryFriction(InclusionModel):
+    """x' ∈ v·… : x1' = x2, x2' ∈ g − μ·Sgn(x2) (a block pushed by g against friction μ)."""
+
+    name = "test-dry-friction"
+    state_names = ("position", "velocity")
+    default_x0 = (0.0, 1.0)
+    mu, g = 1.0, 0.5
+
+    def blocks(self):
+        return (
+            SetBlock.equation(0, _linear({1: 1.0}, 2)),
+            SetBlock.equation(1, lambda y: (np.full(y.shape[0], self.g), np.zeros_like(y)),
+                              signs=(SignTerm(self.mu, _switch(1, 2), 1e-3),)),
+        )
+
+
+def test_simulator_follows_filippov_sticking():
+    """v' = g − μ·sign(v) with v(0) = 1: v = 1 − (μ − g)t until t = 2, then v ≡ 0 (stuck, |g| < μ)."""
+    run = simulate(DryFriction(), 0.0, 3.0, (0.0, 1.0), dt=1e-3)
+    t, v = run.t, run.x[:, 1]
+    moving = t <= 1.9
+    assert np.allclose(v[moving], 1.0 - 0.5 * t[moving], atol=2e-3)
+    assert np.max(np.abs(v[t >= 2.1])) <= 1e-9
+    assert run.x[-1, 0] == pytest.approx(1.0, abs=2e-3)  # ∫ v = 1·2 − 0.25·4 = 1
+
+
+class Sliding(InclusionModel):
+    """x' ∈ −Sgn(x) + u with a control: sliding on x = 0 after t = x(0)."""
+
+    name = "test-sliding"
+    state_names = ("x",)
+    control_names = ("u",)
+    default_x0 = (0.7,)
+
+    def blocks(self):
+        return (SetBlock.equation(0, _linear({1: 1.0}, 2), signs=(SignTerm(1.0, _switch(0, 2), 1e-3),)),)
+
+
+def test_simulator_slides_on_the_discontinuity():
+    run = simulate(Sliding(), 0.0, 1.5, (0.7,), dt=1e-3)
+    assert np.allclose(run.x[run.t <= 0.69, 0], 0.7 - run.t[run.t <= 0.69], atol=2e-3)
+    assert np.max(np.abs(run.x[run.t >= 0.71, 0])) <= 1e-9
+
+
+class Mixed(InclusionModel):
+    """A model with controls, an l1-amplitude sign term, a constant sign term, and a surface."""
+
+    name = "test-mixed"
+    state_names = ("a", "b", "c")
+    control_names = ("u",)
+    default_x0 = (0.3, -0.2, 0.5)
+    end_indices = (0,)
+    default_end_values = (0.1,)
+
+    def blocks(self):
+        return (
+            SetBlock.equation(0, _linear({1: 1.0, 3: 0.5}, 4),
+                              signs=(SignTerm(abs_sum(range(3), 0.7, 4), _switch(2, 4), 0.05),)),
+            SetBlock.equation(1, _linear({0: -1.0, 2: 0.3}, 4), signs=(SignTerm(0.4, _switch(1, 4), 0.05),)),
+            SetBlock.equation(2, _linear({0: 0.2, 3: -1.0}, 4)),
+        )
+
+    def surface(self):
+        def e(x):
+            jac = np.zeros((x.shape[0], 1, 3))
+            jac[:, 0, 0], jac[:, 0, 2] = 1.0, 2.0
+            return (x[:, 0] + 2 * x[:, 2])[:, None] - 1.3, jac
+
+        return Surface(e)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_directional_derivative_with_controls_signs_and_surface(seed):
+    """(11.10) built from (A_k, B_k) against one-sided finite differences along random directions."""
+    model = Mixed()
+    functional = Functional(model, Grid(1.0, 9))
+    rng = np.random.default_rng(seed)
+    xi = functional.pack(rng.normal(size=(9, 3)) * 0.1, rng.normal(size=(9, 3)), rng.normal(size=(9, 1)))
+    qd = functional.quasidifferential(xi, 1e-12)
+    for _ in range(5):
+        g = rng.normal(size=xi.shape) * functional.free
+        alpha = 1e-7
+        fd = (functional.objective(xi + alpha * g) - functional.objective(xi)) / alpha
+        assert qd.directional_derivative(g, functional.weights) == pytest.approx(fd, rel=1e-4, abs=1e-6)
+
+
+def test_set_bounds_of_a_sign_term_contain_filippovs_set():
+    """Far from s = 0 the set is a·sign(s) exactly; at s = 0 it is the whole a·[−1, 1]."""
+    model = Sliding()
+    functional = Functional(model, Grid(1.0, 3))
+    xi = functional.pack(np.array([[0.7], [0.0], [-0.5]]), np.zeros((3, 1)), np.zeros((3, 1)))
+    lower, upper = functional.set_bounds(xi)[0]
+    assert np.allclose(lower, [-1.0, -1.0, 1.0]) and np.allclose(upper, [-1.0, 1.0, 1.0])
+
+
+def test_paper_73_starts_where_the_reaching_phase_ends():
+    x0 = qdframe.load_model("paper-7.3").x0
+    assert np.allclose(x0, [-1.0525, 1.0995, -0.7873, 0.0, 0.0264, 1.1196], atol=1e-3)
+
+
+@pytest.mark.parametrize("nodes", [11, 101])
+def test_paper_73_with_gauss_newton(nodes):
+    result = qdframe.solve("paper-7.3", nodes=nodes, direction="gauss-newton", tol=1e-10, max_iter=10)
+    assert result.status == "solved" and result.I <= 1e-10
+    assert result.boundary_error <= 1e-5 and result.surface_error <= 5e-3
+    assert result.inclusion_residual <= 1e-2
+    assert result.u is not None and result.u.shape == (nodes, 1)
+    assert np.allclose(result.x[:, 0], result.x[0, 0], atol=5e-3)  # x1 flat near −1.0525 on the surface
+
+
+def test_simulate_command(tmp_path, capsys):
+    out = tmp_path / "sim.json"
+    assert main(["simulate", "test-sliding-unregistered", "--from", "0", "--to", "1", "--x0", "1"]) == 2
+    assert main(["simulate", "paper-7.1", "--from", "0", "--to", "0.1", "--x0", "0,0", "--dt", "0.01",
+                 "--json", str(out)]) == 0
+    assert '"x_end"' in out.read_text()
+    assert main(["simulate", "paper-7.1", "--from", "1", "--to", "0", "--x0", "0,0"]) == 2
+    assert main(["simulate", "paper-7.2", "--from", "0", "--to", "1", "--x0", "0,0"]) == 2
+    err = capsys.readouterr().err
+    assert "--to" in err and "S_k" in err
