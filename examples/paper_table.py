@@ -33,7 +33,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--nodes", type=int, nargs="+", default=[11, 101, 1001])
     parser.add_argument("--line-search", default="golden")
-    parser.add_argument("--direction", default="native")
+    parser.add_argument("--direction", default="native", help="default: native, the paper's method")
     args = parser.parse_args()
     print("| example | N | paper's iterations | first iteration at the paper's accuracy | status | iterations "
           "| objective | boundary error | inclusion residual | error vs a known solution | time (s) |")

@@ -44,6 +44,16 @@ def _positive_int(minimum: int):
     return parse
 
 
+def _node_list(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated node counts like 11,101, got {text!r}") from None
+    if any(v < 2 for v in values):
+        raise argparse.ArgumentTypeError(f"expected node counts ≥ 2, got {text!r}")
+    return values
+
+
 def _positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -85,10 +95,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     solve = commands.add_parser("solve", help="solve a model by quasidifferential descent")
     solve.add_argument("model", help="model name (see `qdframe list`)")
-    solve.add_argument("--direction", default="native", help="direction solver (default: native)")
+    solve.add_argument("--direction", default="gauss-newton",
+                       help="direction solver (default: gauss-newton; the paper's method: native)")
     solve.add_argument("--line-search", default="golden", help="line search (default: golden)")
     solve.add_argument("--nodes", type=_positive_int(2), default=101, help="grid nodes N ≥ 2 (default 101)")
     solve.add_argument("--max-iter", type=_positive_int(0), default=500, help="iteration budget (default 500)")
+    solve.add_argument("--continuation", type=_node_list, default=(), metavar="N,N,..",
+                       help="coarser grids to solve on first, e.g. 11,101")
     solve.add_argument("--tol", type=_positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
     solve.add_argument("--delta", type=_positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
     solve.add_argument("--eps", type=_positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
@@ -184,6 +197,7 @@ def _solve(args: argparse.Namespace) -> int:
         delta=args.delta,
         eps=args.eps,
         gamma_max=args.gamma_max,
+        continuation=args.continuation,
         progress=_progress_printer() if show_progress else None,
     )
     if show_progress:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ class DescentOptions:
     """The method's parameters; the paper's defaults δ = 1e-3, ε = 1e-2, γ̄ = 1 (Section 7)."""
 
     max_iter: int = 500
-    tol: float = 1e-6
+    tol: float = 1e-10
     delta: float = 1e-3
     eps: float = 1e-2
     gamma_max: float = 1.0
@@ -60,7 +61,7 @@ def make_line_search(line_search: str | LineSearch) -> LineSearch:
 def solve(
     model: str | InclusionModel,
     nodes: int = 101,
-    direction: str | DirectionSolver = "native",
+    direction: str | DirectionSolver = "gauss-newton",
     line_search: str | LineSearch = "golden",
     *,
     max_iter: int = 500,
@@ -68,9 +69,15 @@ def solve(
     delta: float = 1e-3,
     eps: float = 1e-2,
     gamma_max: float = 1.0,
+    continuation: Sequence[int] = (),
     progress: ProgressCallback | None = None,
 ) -> SolveResult:
-    """Find a trajectory of `model` by δ-quasidifferential descent.
+    """Find a trajectory of `model` by quasidifferential descent.
+
+    `direction` "gauss-newton" (the default) or "native" (the paper's method), or any
+    registered name or DirectionSolver; `line_search` likewise. `continuation` lists
+    coarser grids to solve on first (e.g. (11, 101) before nodes=1001): each solution,
+    interpolated, starts the next grid; the result's history and iterations cover all.
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
@@ -84,8 +91,36 @@ def solve(
     )
     solver = make_direction(direction)
     search = make_line_search(line_search)
-    functional = Functional(model, Grid(model.T, nodes))
-    return descend(functional, solver, search, options, progress)
+    grids = [int(n) for n in continuation] + [nodes]
+    if any(b <= a for a, b in zip(grids, grids[1:])):
+        raise InputError("continuation", f"increasing node counts below nodes = {nodes}", tuple(continuation))
+    start, history, result = None, [], None
+    for count in grids:
+        functional = Functional(model, Grid(model.T, count))
+        if result is not None:
+            start = _interpolate(functional, result)
+        result = descend(functional, solver, search, options, progress, start)
+        history += result.history if not history else [
+            dataclasses.replace(r, iteration=r.iteration + history[-1].iteration,
+                                time_s=r.time_s + history[-1].time_s) for r in result.history[1:]
+        ]
+        if result.status == "failed":
+            break
+    result.history = history
+    result.iterations = history[-1].iteration
+    result.wall_time_s = history[-1].time_s if len(grids) > 1 else result.wall_time_s
+    return result
+
+
+def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
+    """The previous grid's x, z, u linearly interpolated onto `functional`'s grid."""
+    t = functional.grid.t
+
+    def on_grid(values: np.ndarray) -> np.ndarray:
+        return np.stack([np.interp(t, previous.t, column) for column in values.T], axis=1)
+
+    u = None if previous.u is None else on_grid(previous.u)
+    return functional.pack(on_grid(previous.x), on_grid(previous.z), u)
 
 
 def descend(

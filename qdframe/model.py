@@ -168,7 +168,7 @@ class InclusionModel(ABC):
     default_x0: ClassVar[tuple[float, ...]] = ()
     end_indices: ClassVar[tuple[int, ...]] = ()  # J, zero-based
     default_end_values: ClassVar[tuple[float, ...]] = ()
-    default_tol: ClassVar[float] = 1e-6
+    default_tol: ClassVar[float] = 1e-10
 
     def __init__(
         self,

@@ -21,7 +21,7 @@ def test_list_json_names_distributions(capsys):
 
 def test_solve_writes_json_and_plot(tmp_path, capsys):
     out, fig = tmp_path / "r.json", tmp_path / "r.png"
-    code = main(["solve", "paper-7.2", "--nodes", "11", "--max-iter", "2", "--json", str(out), "--plot", str(fig)])
+    code = main(["solve", "paper-7.2", "--direction", "native", "--nodes", "11", "--max-iter", "2", "--json", str(out), "--plot", str(fig)])
     assert code == 0
     data = json.loads(out.read_text())
     assert data["model"] == "paper-7.2" and data["iterations"] == 2

@@ -15,7 +15,7 @@ def first(result, predicate):
 
 @pytest.mark.parametrize("nodes", [11, 101])
 def test_paper_71_reaches_the_papers_accuracy(nodes):
-    result = qdframe.solve("paper-7.1", nodes=nodes)
+    result = qdframe.solve("paper-7.1", nodes=nodes, direction="native")
     reached = first(result, lambda r: r.objective <= 1e-3)
     assert reached is not None and reached <= 40
     assert result.objective <= 1e-3
@@ -27,7 +27,7 @@ def test_paper_71_reaches_the_papers_accuracy(nodes):
 
 @pytest.mark.parametrize("nodes", [11, 101])
 def test_paper_72_reaches_the_papers_accuracy_within_15_iterations(nodes):
-    result = qdframe.solve("paper-7.2", nodes=nodes, max_iter=15)
+    result = qdframe.solve("paper-7.2", nodes=nodes, direction="native", max_iter=15)
     assert result.iterations <= 15
     assert result.I <= 5e-3
     assert result.boundary_error <= 5e-3
@@ -37,7 +37,7 @@ def test_paper_72_reaches_the_papers_accuracy_within_15_iterations(nodes):
 
 @pytest.mark.parametrize("line_search", ["golden", "armijo"])
 def test_every_step_decreases_the_objective(line_search):
-    result = qdframe.solve("paper-7.1", nodes=21, line_search=line_search, max_iter=30)
+    result = qdframe.solve("paper-7.1", nodes=21, direction="native", line_search=line_search, max_iter=30)
     values = [r.objective for r in result.history]
     assert all(b < a for a, b in zip(values, values[1:]))
     assert values[-1] < 0.01 * values[0]
@@ -71,7 +71,7 @@ def test_a_start_that_solves_the_problem_takes_zero_iterations():
 
 def test_unreachable_end_point_is_not_called_solved():
     model = qdframe.load_model("paper-7.2", end_values=[5.0, 5.0])  # |x'| ≤ 1
-    result = qdframe.solve(model, nodes=21, max_iter=40)
+    result = qdframe.solve(model, nodes=21, direction="native", max_iter=40)
     assert result.status in {"stationary", "max_iter"}
     assert result.I > 1.0
     assert result.message
@@ -80,7 +80,7 @@ def test_unreachable_end_point_is_not_called_solved():
 def test_json_has_the_contract_fields(tmp_path):
     import json
 
-    result = qdframe.solve("paper-7.2", nodes=11, max_iter=3)
+    result = qdframe.solve("paper-7.2", nodes=11, direction="native", max_iter=3)
     data = json.loads(result.to_json(tmp_path / "r.json"))
     for key in ("model", "direction", "line_search", "nodes", "T", "status", "iterations", "wall_time_s",
                 "objective", "I", "terms", "boundary_error", "inclusion_residual", "surface_error",
@@ -116,3 +116,24 @@ def test_bad_arguments_name_the_field(kwargs, field):
 def test_bad_boundary_data_names_the_field(overrides, field):
     with pytest.raises(qdframe.InputError, match=field):
         qdframe.load_model("paper-7.2", **overrides)
+
+
+def test_defaults_are_gauss_newton_to_1e_10():
+    result = qdframe.solve("paper-7.2", nodes=21)
+    assert result.direction == "gauss-newton" and result.status == "solved" and result.I <= 1e-10
+
+
+def test_grid_continuation_refines_a_coarse_solution():
+    direct = qdframe.solve("paper-7.1", nodes=201)
+    refined = qdframe.solve("paper-7.1", nodes=201, continuation=(11, 51))
+    assert refined.status == "solved" and refined.nodes == 201 and len(refined.t) == 201
+    assert refined.I <= 1e-10 and refined.boundary_error <= 1e-5
+    assert refined.iterations == refined.history[-1].iteration >= 1
+    assert [h.iteration for h in refined.history] == list(range(len(refined.history)))
+    assert direct.status == "solved"
+
+
+@pytest.mark.parametrize("continuation", [(11, 11), (300,), (1,)])
+def test_bad_continuation_names_the_field(continuation):
+    with pytest.raises(qdframe.InputError, match="continuation|nodes"):
+        qdframe.solve("paper-7.2", nodes=201, continuation=continuation)

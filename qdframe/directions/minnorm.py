@@ -45,15 +45,17 @@ Method (active-set enumeration, vectorized over the batch)
    so it wins.
 
 The loop runs over patterns, never over rows. The number of patterns is
-Π_g (2^{m_g} − 1) before the dimension cut; when it exceeds :data:`PATTERN_CAP`
-the solver falls back to an iterative method, still batched over rows: a few
-accelerated projected gradient iterations (FISTA with adaptive restart and a
-vectorized simplex projection) give feasible weights close to optimal, and an
-exact *polish* finishes from there: Wolfe's primal active-set method, each step
-being the least-squares solve of step 3 on a per-row support. It ends when every
-row passes the optimality check of step 4, so the fallback is exact as well; only
-round-off cycling on nearly degenerate data can hit its step cap, and such a row
-keeps feasible, nearly optimal weights.
+Π_g (2^{m_g} − 1) before the dimension cut, and the cost grows with it; beyond
+`_DIRECT_PATTERNS` (64, where the two methods cost about the same) the solver
+switches to an iterative method, still batched over rows: a few accelerated
+projected gradient iterations (FISTA with adaptive restart and a vectorized
+simplex projection) give feasible weights close to optimal, and an exact *polish*
+finishes from there: Wolfe's primal active-set method, each step being the
+least-squares solve of step 3 on a per-row support. A row is done when it passes
+the optimality check of step 4, so this path is exact as well. Only round-off
+cycling on nearly degenerate data can make a row hit the step cap; such rows are
+solved again by enumeration if there are at most :data:`PATTERN_CAP` (4096)
+patterns, and otherwise keep feasible, nearly optimal weights.
 """
 
 from __future__ import annotations
@@ -66,13 +68,15 @@ import numpy as np
 from ..errors import InputError
 
 PATTERN_CAP = 4096
-"""Largest number of support patterns enumerated before the iterative fallback."""
+"""Largest number of support patterns ever enumerated (see the module docstring)."""
+
+_DIRECT_PATTERNS = 64  # up to this many patterns enumeration is faster than active-set steps
 
 _RANK_RTOL = 1e-10  # a direction counts as dependent below this relative residual
 _RANK_ATOL = 1e-14  # ... or below this absolute one (scaled rows have |entries| ≤ 1)
 _FEASIBILITY_TOL = 1e-12  # λ ≥ −this counts as feasible
 _KKT_TOL = 1e-12  # tolerance of the normalized optimality check (a length, scaled rows)
-_FALLBACK_ITERATIONS = 30  # gradient iterations that warm-start the active-set polish
+_WARM_START_ITERATIONS = 30  # gradient iterations before the active-set steps
 _POLISH_STEPS = 500  # cap on active-set steps (each one decreases ‖y‖ or the support)
 
 Pattern = tuple[tuple[int, ...], ...]  # one nonempty tuple of entry indices per group
@@ -172,8 +176,17 @@ def _real_array(name: str, value: object) -> np.ndarray:
 def _solve_scaled(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
     """Optimal weights (G, m, B) of the row-normalized problem."""
     patterns = _support_patterns(active.any(axis=2), budget=c.shape[0], cap=PATTERN_CAP)
-    if patterns is None:
-        return _iterate_and_polish(c, a, active)
+    if patterns is not None and len(patterns) <= _DIRECT_PATTERNS:
+        return _enumerated(c, a, active, patterns)
+    lam, certified = _active_set(c, a, active)
+    if patterns is not None and not certified.all():  # rescue rows that hit the step cap
+        rows = (Ellipsis, ~certified)
+        lam[rows] = _enumerated(c[rows], a[rows], active[rows], patterns)
+    return lam
+
+
+def _enumerated(c: np.ndarray, a: np.ndarray, active: np.ndarray, patterns: list[Pattern]) -> np.ndarray:
+    """Best candidate of every row over all support patterns."""
     best = _Incumbent.empty(active.shape)
     for pattern in patterns:
         lam, y, support, valid = _pattern_candidate(c, a, active, pattern)
@@ -337,17 +350,20 @@ def _cleaned(lam: np.ndarray, active: np.ndarray) -> np.ndarray:
     return lam / lam.sum(axis=1, keepdims=True)
 
 
-# ------------------------------------------------------------ fallback: iterate + polish
+# ------------------------------------------------------------ active-set method (many patterns)
 
 
-def _iterate_and_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """Too many patterns: a few accelerated projected gradient iterations, then exact
-    active-set steps from the (feasible) iterate."""
-    lam = _Fista.start(c, a, active).run(_FALLBACK_ITERATIONS)
-    return _cleaned(_active_set_polish(c, a, active, lam), active)
+def _active_set(c: np.ndarray, a: np.ndarray, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A few accelerated projected gradient iterations, then exact active-set steps
+    from the (feasible) iterate. Returns the weights and which rows are certified."""
+    lam = _Fista.start(c, a, active).run(_WARM_START_ITERATIONS)
+    lam, certified = _active_set_polish(c, a, active, lam)
+    return _cleaned(lam, active), certified
 
 
-def _active_set_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray) -> np.ndarray:
+def _active_set_polish(
+    c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Wolfe's primal active-set method, batched over rows, from feasible weights λ.
 
     Each step solves the least-squares problem on the current support S (dependent
@@ -356,8 +372,8 @@ def _active_set_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np
     cycle); otherwise λ becomes the target and, unless it passes the optimality check,
     the unsupported entry with the steepest descent slope joins S (a major cycle). A
     row is final when it passes the check; ‖y‖ decreases strictly, so this ends after
-    finitely many steps (`_POLISH_STEPS` guards against round-off cycling, after which
-    a row keeps its current feasible λ).
+    finitely many steps. `_POLISH_STEPS` guards against round-off cycling; a row still
+    pending then keeps its current feasible λ and is reported as not certified.
     """
     groups, width, rows = lam.shape
     lam = lam.copy()
@@ -380,14 +396,16 @@ def _active_set_polish(c: np.ndarray, a: np.ndarray, active: np.ndarray, lam: np
         steepest = slopes.reshape(groups * width, -1).argmax(axis=0)
         major = ~blocking.any(axis=(0, 1))
         final = major & (slopes.max(axis=(0, 1)) <= _KKT_TOL)
-        joins = major & ~final
-        supported.reshape(groups * width, -1)[steepest[joins], np.flatnonzero(joins)] = True
+        joins = np.flatnonzero(major & ~final)
+        supported[steepest[joins] // width, steepest[joins] % width, joins] = True
 
         lam[at], support[at] = moved, supported
         pending = pending[~final]
         if not pending.size:
             break
-    return lam
+    certified = np.ones(rows, dtype=bool)
+    certified[pending] = False
+    return lam, certified
 
 
 def _point(c: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:

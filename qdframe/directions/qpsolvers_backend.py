@@ -47,6 +47,7 @@ class QpsolversDirection(QPDirection):
     name = "qpsolvers:"
     solver: str = "daqp"
     rows_per_qp: int = 0
+    dense: bool | None = None
     settings: tuple[tuple[str, Any], ...] = ()
 
     @classmethod
@@ -76,11 +77,11 @@ class QpsolversDirection(QPDirection):
     def label(self) -> str:
         return f"qpsolvers:{self.solver}"
 
-    @property
-    def dense(self) -> bool:
-        """Whether the solver gets dense matrices (it takes no sparse ones)."""
-        qpsolvers = require("qpsolvers", self.label, "'qdframe[qpsolvers]'")
-        return self.solver not in qpsolvers.sparse_solvers
+    def _dense(self, qpsolvers, per_qp: int) -> bool:
+        """Dense matrices for a dense-only solver or one-row QPs, unless `dense` says otherwise."""
+        if self.dense is not None:
+            return self.dense or self.solver not in qpsolvers.sparse_solvers
+        return self.solver not in qpsolvers.sparse_solvers or (per_qp == 1 and self.solver in qpsolvers.dense_solvers)
 
     def solve_scaled(self, c: np.ndarray, a: np.ndarray, persistent: bool = True) -> tuple[np.ndarray, list[str | None]]:
         qpsolvers = require("qpsolvers", self.label, "'qdframe[qpsolvers]'")
@@ -102,7 +103,7 @@ class QpsolversDirection(QPDirection):
             -a_all.reshape(count, per_qp, -1, dim).transpose(0, 1, 3, 2).reshape(count, -1)
         )
         rhs = np.concatenate([c_all, np.ones((padded, groups))], axis=1).reshape(count, -1)
-        dense = self.dense
+        dense = self._dense(qpsolvers, per_qp)
         if dense:
             matrices = np.zeros((count,) + shape)
             matrices[:, rows_idx, cols_idx] = data
