@@ -145,7 +145,8 @@ def _scaled_batch_last(
     empty = ~active.any(axis=1)
     if empty.any():
         group, row = np.argwhere(empty)[0]
-        raise InputError("mask", "at least one True entry in every group of every row", f"row {row}, group {group} empty")
+        expected = "at least one True entry in every group of every row"
+        raise InputError("mask", expected, f"row {row}, group {group} empty")
     c = np.array(center.T, order="C")  # always a copy: it is scaled in place below
     if not np.isfinite(c).all():
         raise InputError("center", "finite values")
