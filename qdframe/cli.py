@@ -97,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("model", help="model name (see `qdframe list`)")
     solve.add_argument("--direction", default="gauss-newton",
                        help="direction solver (default: gauss-newton; the paper's method: native)")
-    solve.add_argument("--line-search", default="golden", help="line search (default: golden)")
+    solve.add_argument("--line-search", help="line search (default: the direction's: armijo for gauss-newton, golden for native)")
     solve.add_argument("--nodes", type=_positive_int(2), default=101, help="grid nodes N ≥ 2 (default 101)")
     solve.add_argument("--max-iter", type=_positive_int(0), default=500, help="iteration budget (default 500)")
     solve.add_argument("--continuation", type=_node_list, default=(), metavar="N,N,..",

@@ -62,7 +62,7 @@ def solve(
     model: str | InclusionModel,
     nodes: int = 101,
     direction: str | DirectionSolver = "gauss-newton",
-    line_search: str | LineSearch = "golden",
+    line_search: str | LineSearch | None = None,
     *,
     max_iter: int = 500,
     tol: float | None = None,
@@ -75,7 +75,8 @@ def solve(
     """Find a trajectory of `model` by quasidifferential descent.
 
     `direction` "gauss-newton" (the default) or "native" (the paper's method), or any
-    registered name or DirectionSolver; `line_search` likewise. `continuation` lists
+    registered name or DirectionSolver; `line_search` likewise, by default the
+    direction's own (`default_line_search`: armijo for gauss-newton, golden for native). `continuation` lists
     coarser grids to solve on first (e.g. (11, 101) before nodes=1001): each solution,
     interpolated, starts the next grid; the result's history and iterations cover all.
 
@@ -90,7 +91,7 @@ def solve(
         max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max
     )
     solver = make_direction(direction)
-    search = make_line_search(line_search)
+    search = make_line_search(solver.default_line_search if line_search is None else line_search)
     grids = [int(n) for n in continuation] + [nodes]
     if any(b <= a for a, b in zip(grids, grids[1:])):
         raise InputError("continuation", f"increasing node counts below nodes = {nodes}", tuple(continuation))

@@ -45,6 +45,7 @@ class DirectionSolver(ABC):
     """Computes a descent direction of the discretized objective at ξ."""
 
     name: ClassVar[str] = ""
+    default_line_search: ClassVar[str] = "golden"  # used when the caller names none
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional`: reset any state kept between iterations."""

@@ -50,6 +50,7 @@ class GaussNewton(DirectionSolver):
     """
 
     name = "gauss-newton"
+    default_line_search = "armijo"  # a Newton-type step: try γ = 1 first
     mu: float = 1e-3
     mu_min: float = 1e-12
     mu_max: float = 1e8
