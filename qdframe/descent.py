@@ -184,10 +184,31 @@ def descend(
     return _result(functional, solver, search, options, xi, status, message, history, time.perf_counter() - clock)
 
 
+def _residuals_disagree(functional: Functional, residuals, I: float) -> str:
+    """What I ≤ tol implies for each residual, checked (empty when all agree).
+
+    χ ≤ I gives |boundary residual| ≤ √(2I); φ, υ, ω ≤ I give, at any node k,
+    h, |x − x0 − ∫z|, ‖e‖ ≤ √(2I/w_k).
+    """
+    slack = 1.0 + 1e-6
+    pointwise = np.sqrt(2.0 * I / np.min(functional.weights)) * slack + 1e-300
+    checks = [
+        ("boundary error", residuals.boundary_error, np.sqrt(2.0 * I) * slack + 1e-300),
+        ("inclusion residual", residuals.inclusion_residual, pointwise),
+        ("consistency error", residuals.consistency_error, pointwise),
+        ("surface error", residuals.surface_error or 0.0, pointwise),
+    ]
+    return ", ".join(f"{name} {value:.2e} > {bound:.2e}" for name, value, bound in checks if value > bound)
+
+
 def _result(functional, solver, search, options, xi, status, message, history, elapsed) -> SolveResult:
     model = functional.model
     terms = functional.terms(xi)
     residuals = functional.residuals(xi)
+    if status == "solved":
+        disagreement = _residuals_disagree(functional, residuals, terms.I)
+        if disagreement:
+            status, message = "failed", f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
     x, z = functional.split(xi)
     exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))

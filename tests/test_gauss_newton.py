@@ -33,11 +33,12 @@ def dense_residuals(functional: Functional, xi: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_step_equals_a_dense_levenberg_marquardt_step(seed):
-    """Without a cost the step solves (JᵀJ + μW) d = −Jᵀr on the free unknowns, J by finite differences."""
+    """Without a cost, and with every z far outside its set (every hinge stays active), the step
+    solves (JᵀJ + μW) d = −Jᵀr on the free unknowns, J by finite differences."""
     model = qdframe.load_model("paper-7.2")
     functional = Functional(model, Grid(1.0, 6))
     rng = np.random.default_rng(seed)
-    xi = functional.pack(rng.normal(size=(6, 2)) * 0.3, rng.normal(size=(6, 2)) + 1.5)  # z outside the sets
+    xi = functional.pack(rng.normal(size=(6, 2)) * 0.3, rng.normal(size=(6, 2)) * 0.3 + 3.0)  # z far outside the sets
     free = functional.free.ravel()
     r0 = dense_residuals(functional, xi)
     J = np.zeros((r0.size, free.sum()))

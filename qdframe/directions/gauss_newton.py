@@ -13,14 +13,17 @@ constraint, and x(t_0) = x0, Z_0 = 0 are constraints too. The step d minimizes
     λ/2·‖r + J d‖² + [cost model] + μ/2·Σ_k w_k ‖d_k‖²   subject to  E d = 0,
 
 with μ adapted to the success of the previous step (ratio of actual to predicted
-decrease). Without a cost this is one sparse symmetric KKT solve (SuperLU). With a
+decrease). The distance residuals h_b = max(0, ℓ) are kept one-sided: each side of each
+set enters as a squared hinge max(0, ℓ_side + ∇ℓ_side·d)², so a z on (or inside) the
+boundary of F is neither ignored (the Jacobian element of h is 0 there) nor pulled onto
+it; the model is exact for piecewise-linear sets. Without a cost the step is found by a
+primal active-set iteration, a few sparse symmetric KKT solves (SuperLU). With a
 nonsmooth cost (Example 7.1) the cost model is the max of the linearizations of all
 pieces of each max-group — the δ-active ones and those that become active within the
 step, so the model is exact for piecewise-linear costs such as |x1| — and the
 linearized active piece of each min-group, and
-the step is a sparse QP solved with Clarabel; there h_b = max(0, ℓ) is kept one-sided
-(a slack s ≥ 0, s ≥ ℓ_side + ∇ℓ_side·d per side), since a linear cost would otherwise
-push z across the boundary of F where the Jacobian element of h_b is 0.
+the step is a sparse QP solved with Clarabel (the hinges as slacks s ≥ 0,
+s ≥ ℓ_side + ∇ℓ_side·d).
 """
 
 from __future__ import annotations
@@ -102,7 +105,6 @@ class _System:
         self.delta = delta
         self.penalty = functional.penalty
         self.value = functional.objective(xi)
-        self.one_sided = functional.cost is not None
         self.sides = functional.distance_sides(xi)
         self.residual, self.jacobian = self._least_squares(xi)
         self.constraints = self._constraints()
@@ -144,17 +146,6 @@ class _System:
             residuals.append(res)
             count += res.size
 
-        y_cols, z_cols = self.y_cols(), self.z_cols()
-        if not self.one_sided:  # φ: √w·h with the Jacobian of the largest side where h > 0
-            for block in self.sides:
-                ell = np.array([side[0] for side in block.sides])
-                best = np.argmax(ell, axis=0)
-                positive = (ell[best, np.arange(nodes)] > 0)[:, None]
-                dell_dy = np.choose(best[:, None], [side[1] for side in block.sides])
-                psi = np.choose(best[:, None], [side[2] for side in block.sides])
-                add(root_w * block.h,
-                    np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
-                    root_w[:, None] * np.where(positive, np.concatenate([dell_dy, psi], axis=1), 0.0))
         consistency = f.consistency(xi)  # υ, one row per node and state
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
         add((root_w[:, None] * consistency).ravel(),
@@ -198,16 +189,59 @@ class _System:
         weights[:, : 2 * self.n + self.m] = self.f.weights[:, None]
         return weights.ravel()
 
+    def _hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
+        """The one-sided residuals of φ: rows √w_k·(ℓ_side + ∇ℓ_side·d) for every block,
+        side and node (h_b = max(0, max_side ℓ)), as a matrix and the values √w_k·ℓ."""
+        root_w = np.sqrt(self.f.weights)
+        y_cols, z_cols = self.y_cols(), self.z_cols()
+        rows, cols, vals, values = [], [], [], []
+        count = 0
+        for block in self.sides:
+            block_cols = np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1)
+            for ell, dell_dy, psi in block.sides:
+                coefficients = root_w[:, None] * np.concatenate([dell_dy, psi], axis=1)
+                rows.append(np.repeat(count + np.arange(self.nodes), block_cols.shape[1]))
+                cols.append(block_cols.ravel())
+                vals.append(coefficients.ravel())
+                values.append(root_w * ell)
+                count += self.nodes
+        matrix = sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, self.size)
+        )
+        return matrix, np.concatenate(values)
+
     def solve(self, mu: float) -> tuple[np.ndarray, float, float]:
         """The step (extended), the predicted decrease of the objective, and its slope."""
         J, r, lam = self.jacobian, self.residual, self.penalty
         hessian = (lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc()
         gradient = lam * (J.T @ r)
         if self.cost is None:
-            d = self._solve_kkt(hessian, gradient)
-            predicted = -(gradient @ d + 0.5 * lam * np.sum((J @ d) ** 2))
-            return d, predicted, float(gradient @ d)
+            step = self._solve_hinged(hessian, gradient)
+            if step is not None:
+                return step
         return self._solve_cost_qp(hessian, gradient)
+
+    def _solve_hinged(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float] | None:
+        """min ½dᵀHd + gᵀd + (λ/2)·Σ max(0, v + A d)² s.t. E d = 0, by a primal active-set
+        (semismooth Newton) iteration: one sparse KKT solve per guess of the violated
+        sides, until the guess repeats. None if it does not settle (the QP takes over)."""
+        lam = self.penalty
+        matrix, values = self._hinges()
+        active = values > 0
+        for _ in range(30):
+            A = matrix[active]
+            d = self._solve_kkt((hessian + lam * (A.T @ A)).tocsc(), gradient + lam * (A.T @ values[active]))
+            predicted_sides = values + matrix @ d
+            settled = predicted_sides > 0
+            if np.array_equal(settled, active):
+                break
+            active = settled
+        else:
+            return None
+        J = self.jacobian
+        model = 0.5 * lam * (np.sum((self.residual + J @ d) ** 2) + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
+        slope = float(gradient @ d) + lam * float(np.maximum(values, 0.0) @ (matrix @ d))
+        return d, float(self.value - model), slope
 
     def _solve_kkt(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> np.ndarray:
         E = self.constraints
@@ -229,7 +263,7 @@ class _System:
 
         nodes, w, lam = self.nodes, self.f.weights, self.penalty
         y_cols, z_cols = self.y_cols(), self.z_cols()
-        max_groups, min_groups = self.cost  # type: ignore[misc]
+        max_groups, min_groups = self.cost if self.cost is not None else ([], [])
         min_linear = np.zeros(self.size)
         for values, grads in min_groups:  # concave: linearize the active piece
             pick = grads[np.arange(nodes), np.argmin(values, axis=1)]
