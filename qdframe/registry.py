@@ -50,53 +50,69 @@ def _distribution(ep: EntryPoint) -> str:
 
 
 @lru_cache(maxsize=None)
-def _entries(kind: str) -> dict[str, Entry]:
-    found: dict[str, Entry] = {}
+def _points(kind: str) -> dict[str, EntryPoint]:
+    """The entry points of a kind by name, without importing them (winners of clashes)."""
+    found: dict[str, EntryPoint] = {}
     candidates = sorted(
         entry_points(group=GROUPS[kind]),
         key=lambda ep: (_distribution(ep) != "qdframe", _distribution(ep), ep.name),
     )
     for ep in candidates:
-        dist = _distribution(ep)
         if ep.name in found:
-            if found[ep.name].target != ep.value:
+            if found[ep.name].value != ep.value:
                 warnings.warn(
-                    f"{KIND_LABEL[kind]} {ep.name!r} from {dist} is shadowed by the one from "
-                    f"{found[ep.name].distribution}",
+                    f"{KIND_LABEL[kind]} {ep.name!r} from {_distribution(ep)} is shadowed by the one from "
+                    f"{_distribution(found[ep.name])}",
                     PluginWarning,
-                    stacklevel=3,
+                    stacklevel=4,
                 )
             continue
-        try:
-            obj = ep.load()
-        except Exception as exc:  # a broken plugin must not break qdframe
-            warnings.warn(
-                f"could not load {KIND_LABEL[kind]} {ep.name!r} from distribution {dist} "
-                f"({ep.value}): {type(exc).__name__}: {exc}",
-                PluginWarning,
-                stacklevel=3,
-            )
-            continue
-        found[ep.name] = Entry(kind, ep.name, dist, ep.value, obj)
+        found[ep.name] = ep
     return found
 
 
+@lru_cache(maxsize=None)
+def _load(kind: str, name: str) -> Entry | None:
+    """Import one entry; a failure is a warning naming its distribution, and None."""
+    ep = _points(kind)[name]
+    dist = _distribution(ep)
+    try:
+        obj = ep.load()
+    except Exception as exc:  # a broken plugin must not break qdframe
+        warnings.warn(
+            f"could not load {KIND_LABEL[kind]} {ep.name!r} from distribution {dist} "
+            f"({ep.value}): {type(exc).__name__}: {exc}",
+            PluginWarning,
+            stacklevel=4,
+        )
+        return None
+    return Entry(kind, ep.name, dist, ep.value, obj)
+
+
 def available(kind: str) -> dict[str, Entry]:
-    """Every loadable entry of a kind ('models', 'directions', 'line_searches')."""
-    return dict(_entries(kind))
+    """Every loadable entry of a kind ('models', 'directions', 'line_searches'); imports them all."""
+    loaded = {name: _load(kind, name) for name in _points(kind)}
+    return {name: entry for name, entry in loaded.items() if entry is not None}
+
+
+def names(kind: str) -> list[str]:
+    """The registered names of a kind, without importing anything."""
+    return sorted(_points(kind))
 
 
 def refresh() -> None:
     """Forget the cached entry points (after installing a plugin at run time)."""
-    _entries.cache_clear()
+    _points.cache_clear()
+    _load.cache_clear()
 
 
 def lookup(kind: str, name: str) -> Entry:
-    """The entry called `name`. A name 'prefix:arg' resolves to the entry 'prefix:'."""
-    entries = _entries(kind)
-    if name in entries:
-        return entries[name]
+    """The entry called `name`, importing only it. A name 'prefix:arg' resolves to the
+    entry 'prefix:'. An unknown (or unloadable) name is an error listing the others."""
+    points = _points(kind)
     prefix, sep, _ = name.partition(":")
-    if sep and f"{prefix}:" in entries:
-        return entries[f"{prefix}:"]
-    raise UnknownNameError(KIND_LABEL[kind], name, sorted(entries))
+    key = name if name in points else f"{prefix}:" if sep and f"{prefix}:" in points else None
+    entry = _load(kind, key) if key is not None else None
+    if entry is None:
+        raise UnknownNameError(KIND_LABEL[kind], name, [n for n in sorted(points) if n != key])
+    return entry
