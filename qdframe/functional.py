@@ -151,6 +151,9 @@ class Functional:
         self.psi_samples = psi_samples
         self.free = np.ones((grid.nodes, self.dim), dtype=bool)
         self.free[0, : self.n] = False  # x(t_0) = x0 is known
+        self.resolved = dict(model.resolved)  # z_i ≡ x_j: z_i is not an unknown
+        for i in self.resolved:
+            self.free[:, self.n + i] = False
 
     # ---------------------------------------------------------------- layout
     @property
@@ -158,8 +161,13 @@ class Functional:
         return self.grid.weights
 
     def split(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(x, z), each (N, n)."""
-        return xi[:, : self.n], xi[:, self.n : 2 * self.n]
+        """(x, z), each (N, n); a resolved state's z_i is x_j."""
+        x, z = xi[:, : self.n], xi[:, self.n : 2 * self.n]
+        if self.resolved:
+            z = z.copy()
+            for i, j in self.resolved.items():
+                z[:, i] = x[:, j]
+        return x, z
 
     def controls(self, xi: np.ndarray) -> np.ndarray:
         """u, shape (N, m)."""
@@ -173,6 +181,8 @@ class Functional:
         parts = [x, z] + ([] if self.m == 0 else [np.zeros((x.shape[0], self.m)) if u is None else u])
         xi = np.concatenate(parts, axis=1).astype(float)
         xi[0, : self.n] = self.model.x0
+        for i, j in self.resolved.items():
+            xi[:, self.n + i] = xi[:, j]
         return xi
 
     def initial_point(self) -> np.ndarray:
@@ -282,7 +292,18 @@ class Functional:
         if self.cost is not None:
             cost_sub, cost_sup = self._cost_quasidifferential(y, delta)
             sub, sup = sub + cost_sub, sup + cost_sup
-        return Quasidifferential(_project(sub, self.free), _project(sup, self.free))
+        return Quasidifferential(_project(self._tie(sub), self.free), _project(self._tie(sup), self.free))
+
+    def _tie(self, polytope: SimplexSum) -> SimplexSum:
+        """The chain rule of z_i ≡ x_j: a z_i-component moves onto x_j."""
+        if not self.resolved:
+            return polytope
+        center, generators = polytope.center.copy(), polytope.generators.copy()
+        for i, j in self.resolved.items():
+            for array in (center, generators):
+                array[..., j] += array[..., self.n + i]
+                array[..., self.n + i] = 0.0
+        return SimplexSum(center, generators, polytope.mask)
 
     # ------------------------------------------------ residuals and Jacobians
     def distance_sides(self, xi: np.ndarray) -> list[DistanceSides]:

@@ -164,6 +164,9 @@ class InclusionModel(ABC):
     description: ClassVar[str] = ""
     state_names: ClassVar[tuple[str, ...]] = ()
     control_names: ClassVar[tuple[str, ...]] = ()  # unknown controls u(t), solved for with x and z
+    # resolved states {i: j}: x_i' = x_j exactly (as 7.3's x1' = x4); z_i is then not an
+    # unknown but x_j itself, with no set and no block (the paper's reduction of 7.3)
+    resolved: ClassVar[dict[int, int]] = {}
     default_T: ClassVar[float] = 1.0
     default_x0: ClassVar[tuple[float, ...]] = ()
     end_indices: ClassVar[tuple[int, ...]] = ()  # J, zero-based
@@ -229,11 +232,14 @@ class InclusionModel(ABC):
             for term in block.signs:
                 if not (term.band >= 0):  # NaN fails too; inf is allowed
                     raise InputError(f"{type(self).__name__} sign term {term.name!r} band", "a number ≥ 0", term.band)
-        covered = sorted(c for block in self.blocks() for c in block.coords)
+        for i, j in self.resolved.items():
+            if not (0 <= i < self.n_states and 0 <= j < self.n_states):
+                raise InputError(f"{type(self).__name__}.resolved", f"pairs i: j of indices in 0..{self.n_states - 1}", (i, j))
+        covered = sorted([c for block in self.blocks() for c in block.coords] + list(self.resolved))
         if covered != list(range(self.n_states)):
             raise InputError(
                 f"{type(self).__name__}.blocks",
-                f"blocks covering each coordinate 0..{self.n_states - 1} exactly once",
+                f"blocks (with the resolved states) covering each coordinate 0..{self.n_states - 1} exactly once",
                 covered,
             )
 

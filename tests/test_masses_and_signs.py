@@ -144,3 +144,29 @@ def test_simulate_command(tmp_path, capsys):
     assert main(["simulate", "paper-7.2", "--from", "0", "--to", "1", "--x0", "0,0"]) == 2
     err = capsys.readouterr().err
     assert "--to" in err and "S_k" in err
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_resolved_states_tie_z_to_x(seed):
+    """paper-7.3-reduced: z_i ≡ x_j, and (11.10) still matches finite differences."""
+    model = qdframe.load_model("paper-7.3-reduced", x0=[-1.05, 1.1, -0.79, 0.0, 0.03, 1.12])
+    functional = Functional(model, Grid(1.0, 7))
+    rng = np.random.default_rng(seed)
+    xi = functional.pack(rng.normal(size=(7, 6)), rng.normal(size=(7, 6)), rng.normal(size=(7, 1)))
+    x, z = functional.split(xi)
+    assert np.array_equal(z[:, :3], x[:, 3:])
+    qd = functional.quasidifferential(xi, 1e-12)
+    for _ in range(4):
+        g = rng.normal(size=xi.shape) * functional.free
+        assert np.all(g[:, 6:9] == 0)  # z1..z3 are not unknowns
+        alpha = 1e-7
+        fd = (functional.objective(xi + alpha * g) - functional.objective(xi)) / alpha
+        assert qd.directional_derivative(g, functional.weights) == pytest.approx(fd, rel=1e-4, abs=1e-6)
+
+
+def test_reduced_and_full_73_solve_to_the_same_accuracy():
+    full = qdframe.solve("paper-7.3", nodes=21)
+    reduced = qdframe.solve("paper-7.3-reduced", nodes=21)
+    for result in (full, reduced):
+        assert result.status == "solved" and result.boundary_error <= 1e-5 and result.surface_error <= 5e-3
+    assert np.array_equal(reduced.z[:, :3], reduced.x[:, 3:])

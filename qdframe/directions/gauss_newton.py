@@ -166,21 +166,29 @@ class _System:
         return np.concatenate(residuals), jacobian
 
     def _constraints(self) -> sp.csr_matrix:
-        """E d = 0: dx_0 = 0, dZ_0 = 0, dZ_k − dZ_{k−1} − h/2·(dz_k + dz_{k−1}) = 0."""
+        """E d = 0: dx_0 = 0, dZ_0 = 0, dz_i = dx_j for resolved states,
+        dZ_k − dZ_{k−1} − h/2·(dz_k + dz_{k−1}) = 0."""
         n, h = self.n, self.f.grid.step
         x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
         fixed = np.concatenate([x_cols[0], Z_cols[0]])
         rows = [np.arange(2 * n)]
         cols = [fixed]
         vals = [np.ones(2 * n)]
-        recursion = 2 * n + np.arange((self.nodes - 1) * n)
+        count = 2 * n
+        for i, j in self.f.resolved.items():  # dz_i = dx_j at every node
+            tie = count + np.arange(self.nodes)
+            rows += [tie, tie]
+            cols += [z_cols[:, i], x_cols[:, j]]
+            vals += [np.ones(self.nodes), -np.ones(self.nodes)]
+            count += self.nodes
+        recursion = count + np.arange((self.nodes - 1) * n)
         for col, val in ((Z_cols[1:], 1.0), (Z_cols[:-1], -1.0), (z_cols[1:], -h / 2), (z_cols[:-1], -h / 2)):
             rows.append(recursion)
             cols.append(col.ravel())
             vals.append(np.full(recursion.size, val))
         return sp.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(2 * n + recursion.size, self.size),
+            shape=(count + recursion.size, self.size),
         )
 
     def _damping(self) -> np.ndarray:

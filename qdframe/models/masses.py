@@ -99,6 +99,18 @@ class Paper73(InclusionModel):
         return np.zeros((t.size, 6)), np.zeros((t.size, 6))
 
 
+class Paper73Reduced(Paper73):
+    """Example 7.3 with the paper's reduction: x1' = x4, x2' = x5, x3' = x6 are resolved
+    (z1..z3 are x4..x6 themselves, no sets, no residuals for them)."""
+
+    name = "paper-7.3-reduced"
+    description = "Example 7.3 with the resolved states x1..x3 eliminated from the unknowns z"
+    resolved = {0: 3, 1: 4, 2: 5}
+
+    def blocks(self) -> tuple[SetBlock, ...]:
+        return super().blocks()[3:]
+
+
 @lru_cache(maxsize=1)
 def reaching_phase_end() -> tuple[float, ...]:
     """x(0) after the reaching phase [−0.2, 0] with u = 0 (Filippov simulation)."""
