@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
 from .registry import GROUPS, KIND_LABEL, available
 
@@ -122,6 +123,20 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--dt", type=_positive_float, default=1e-4, help="time step (default 1e-4)")
     simulate.add_argument("--json", metavar="FILE", help="write the trajectory as JSON")
     simulate.add_argument("--quiet", action="store_true", help="print nothing but errors")
+
+    bench = commands.add_parser("bench", help="benchmarks")
+    benches = bench.add_subparsers(dest="bench_command", required=True, parser_class=_Parser)
+    bench_directions = benches.add_parser(
+        "directions", help="time every installed min-norm direction backend against native"
+    )
+    bench_directions.add_argument("--nodes", type=_positive_int(2), default=1001, help="grid nodes N ≥ 2 (default 1001)")
+    bench_directions.add_argument("--repeat", type=_positive_int(1), default=3, help="timed passes R ≥ 1 (default 3)")
+    bench_directions.add_argument("--directions", metavar="NAME,NAME,..", help="only these directions (default: all installed)")
+    bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
+    bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    benches.add_parser("hard", help="the hard-case suite: what each case measured")
+
+    add_check_parser(commands)
     return parser
 
 
@@ -134,6 +149,10 @@ def main(argv: list[str] | None = None) -> int:
             return _list(args)
         if args.command == "simulate":
             return _simulate(args)
+        if args.command == "bench":
+            return _bench_hard() if args.bench_command == "hard" else _bench_directions(args)
+        if args.command == "check-model":
+            return main_check(args)
         return _solve(args)
     except _UsageError as exc:
         print(exc, file=sys.stderr)
@@ -228,6 +247,33 @@ def _simulate(args: argparse.Namespace) -> int:
         print(f"{run.model}: t = {run.t[0]:g} → {run.t[-1]:g}, {len(run.t) - 1} steps of {run.dt:.3g}")
         print("x(T1) = " + ", ".join(f"{n} {v:.6f}" for n, v in zip(names, run.x[-1])))
     return 0
+
+
+def _bench_directions(args: argparse.Namespace) -> int:
+    from .bench import bench_directions, format_table, write_json
+
+    if args.json:
+        _writable("--json", args.json)
+    names = None
+    if args.directions is not None:
+        names = [name.strip() for name in args.directions.split(",") if name.strip()]
+        if not names:
+            raise InputError("--directions", "comma-separated direction names like native,osqp", args.directions)
+    say = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+    report = bench_directions(args.nodes, repeat=args.repeat, names=names, progress=say)
+    if args.json:
+        write_json(report, args.json)
+    if not args.quiet:
+        print(format_table(report))
+    return 0
+
+
+def _bench_hard() -> int:
+    from . import hard
+
+    results = hard.run()
+    print(hard.table(results))
+    return 0 if all(r.passed for r in results) else 1
 
 
 def _progress_printer():

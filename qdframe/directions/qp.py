@@ -27,9 +27,10 @@ within ``feas_tol``; they are projected onto the simplices and the point y = c +
 Since y* is in the ball with diameter [0, y] and on the far side of the supporting
 hyperplane {s : ⟨y, s⟩ = min_P ⟨y, ·⟩}, ‖y − y*‖² ≤ gap(y): the default
 ``gap_tol`` = 2.5e-13 certifies ‖y − y*‖ ≤ 5e-7 × (power of two ≥ the row's largest
-entry) ≤ 1e-6 × the row's largest entry. A row that fails is solved once more by the same backend, as a QP of only the failed rows
-(``retry``; a stacked QP's tolerances are global, so a few rows of a large stack can
-miss the per-row check that they meet alone). A row that still fails raises
+entry) ≤ 1e-6 × the row's largest entry. A row that fails is solved once more by the same backend, in smaller QPs of only the
+failed rows (``retry``; a stacked QP's tolerances are global, so a few rows of a large
+stack can miss the per-row check that they meet alone, and an interior-point method
+may stall on a large stack that it solves in small pieces). A row that still fails raises
 :class:`~qdframe.errors.BackendError` naming the backend, the row (and node) and the
 status, or, with ``fallback=True``, is solved by ``native`` after a
 :class:`BackendFallbackWarning`. A bad direction is never returned silently.
@@ -268,7 +269,8 @@ class QPDirection(MinNormDirection):
 
     fallback: solve the rows a backend fails on by `native` (with a warning) instead of
     raising BackendError. retry: first solve the failed rows once more by the same
-    backend, as a separate QP of only those rows (when they are not all rows). feas_tol, gap_tol: the per-row acceptance check (module
+    backend, as separate, smaller QPs of only those rows (a backend may use other
+    settings for them). feas_tol, gap_tol: the per-row acceptance check (module
     docstring), in units of the row's largest entry (squared for gap_tol).
     """
 
@@ -292,10 +294,11 @@ class QPDirection(MinNormDirection):
         return self.name
 
     @abstractmethod
-    def solve_scaled(self, c: np.ndarray, a: np.ndarray, persistent: bool = True) -> tuple[np.ndarray, list[str | None]]:
+    def solve_scaled(self, c: np.ndarray, a: np.ndarray, retry: bool = False) -> tuple[np.ndarray, list[str | None]]:
         """Raw weights (B, G, m) and per-row solver status (None = success) of the scaled
         problems min ‖c_b + Σ λ a_b‖ with λ_bg in the unit simplex; c (B, d), a (B, G, m, d).
-        persistent: keep solver objects for the next call of this shape (False for a retry)."""
+        retry: this is the second attempt, on the rows that failed the first (solver objects
+        are then not kept for later calls, and a backend may use other settings)."""
 
     def cached(self, key: Any, build: Callable[[], Any], persistent: bool = True) -> tuple[Any, bool]:
         """(solver object for `key`, whether it was built just now). Built once per key
@@ -322,12 +325,12 @@ class QPDirection(MinNormDirection):
         if rows == 0 or groups == 0:
             return np.array(center, dtype=float), np.zeros(batch.mask.shape)
         c, a = batch.center, batch.generators
-        raw, status = self.solve_scaled(c, a, persistent=True)
+        raw, status = self.solve_scaled(c, a)
         lam, points, problems = certify(c, a, raw, self.feas_tol, self.gap_tol)
         failed = [b for b in range(rows) if status[b] is not None or problems[b] is not None]
-        if self.retry and 0 < len(failed) < rows:  # once more, as a QP of only those rows
+        if self.retry and failed:  # once more, as QPs of only those rows
             index = np.array(failed)
-            raw_again, status_again = self.solve_scaled(c[index], a[index], persistent=False)
+            raw_again, status_again = self.solve_scaled(c[index], a[index], retry=True)
             lam_again, points_again, problems_again = certify(c[index], a[index], raw_again, self.feas_tol, self.gap_tol)
             lam[index], points[index] = lam_again, points_again
             for i, b in enumerate(failed):
