@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -221,12 +220,15 @@ def _solve(args: argparse.Namespace) -> int:
     )
     if show_progress:
         print(file=sys.stderr)
-    if args.json:
-        result.to_json(args.json)
-    if args.plot:
-        from .plotting import plot_result
+    try:
+        if args.json:
+            result.to_json(args.json)
+        if args.plot:
+            from .plotting import plot_result
 
-        plot_result(result, args.plot)
+            plot_result(result, args.plot)
+    except OSError as exc:
+        raise QdframeError(f"could not write the output: {exc}") from None
     if not args.quiet:
         print(result.summary())
     return 1 if result.status == "failed" else 0
@@ -290,9 +292,18 @@ def _progress_printer():
 
 
 def _writable(field: str, path: str) -> None:
-    parent = Path(path).expanduser().resolve().parent
-    if Path(path).is_dir() or not parent.is_dir() or not os.access(parent, os.W_OK):
-        raise InputError(field, "a file path in an existing, writable directory", path)
+    """Fail early, with one line, if `path` cannot be written (tries to open it)."""
+    target = Path(path).expanduser()
+    existed = target.exists()
+    try:
+        if target.is_dir():
+            raise IsADirectoryError(path)
+        with open(target, "a"):
+            pass
+    except OSError:
+        raise InputError(field, "a file path in an existing, writable directory", path) from None
+    if not existed:
+        target.unlink(missing_ok=True)
 
 
 if __name__ == "__main__":

@@ -84,3 +84,9 @@ def test_a_broken_plugin_is_a_warning_naming_its_distribution(tmp_path, monkeypa
     finally:
         monkeypatch.undo()
         registry.refresh()
+
+
+def test_an_unwritable_plot_path_is_a_usage_error_not_a_traceback(capsys):
+    assert main(["solve", "paper-7.2", "--nodes", "5", "--plot", "/proc/qdframe-test.png"]) == 2
+    err = capsys.readouterr().err
+    assert "--plot" in err and "Traceback" not in err and err.count("\n") == 1
