@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -357,34 +356,3 @@ def main_check(args: argparse.Namespace) -> int:
     if not report.ok:
         raise ModelCheckError(report.message())
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """`python -m qdframe.check NAME …`: the same command before it is wired into `qdframe`."""
-    from .cli import _Parser, _UsageError
-
-    argv = sys.argv[1:] if argv is None else list(argv)
-    debug = "--debug" in argv
-    argv = [a for a in argv if a != "--debug"]
-    parser = _Parser(prog="qdframe")
-    add_check_parser(parser.add_subparsers(dest="command", required=True, parser_class=_Parser))
-    try:
-        args = parser.parse_args(["check-model", *argv] if argv[:1] != ["check-model"] else argv)
-        return main_check(args)
-    except _UsageError as exc:
-        print(exc, file=sys.stderr)
-        return 2
-    except InputError as exc:
-        if debug:
-            raise
-        print(f"qdframe: error: {exc}", file=sys.stderr)
-        return 2
-    except QdframeError as exc:
-        if debug:
-            raise
-        print(f"qdframe: error: {exc}", file=sys.stderr)
-        return 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -7,7 +7,8 @@ import pytest
 
 import qdframe
 from qdframe import registry
-from qdframe.check import ModelCheckError, add_check_parser, check_model, main, main_check
+from qdframe.check import ModelCheckError, add_check_parser, check_model, main_check
+from qdframe.cli import main as cli_main
 from qdframe.cli import _Parser
 from qdframe.model import Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
 
@@ -157,7 +158,7 @@ def test_command_fails_with_one_line_and_exit_status_1(monkeypatch, capsys):
     with pytest.raises(ModelCheckError, match="wrong gradient"):
         main_check(_parse(["check-model", "broken"]))
     capsys.readouterr()
-    assert main(["broken"]) == 1
+    assert cli_main(["check-model", "broken"]) == 1
     captured = capsys.readouterr()
     assert "wrong gradient" in captured.out  # the table
     assert captured.err.count("\n") == 1 and captured.err.startswith("qdframe: error: model 'broken'")
@@ -165,6 +166,6 @@ def test_command_fails_with_one_line_and_exit_status_1(monkeypatch, capsys):
 
 @pytest.mark.parametrize("argv", [["no-such-model"], ["paper-7.1", "--samples", "0"], ["paper-7.1", "--tol", "-1"]])
 def test_bad_arguments_exit_2_with_one_line(argv, capsys):
-    assert main(argv) == 2
+    assert cli_main(["check-model", *argv]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
