@@ -212,7 +212,10 @@ def _result(functional, solver, search, options, xi, status, message, history, e
     x, z = functional.split(xi)
     exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
-    bounds = [None if b is None else {"lower": b[0], "upper": b[1]} for b in functional.set_bounds(xi)]
+    bounds = [
+        None if b is None else {"coordinate": block.coords[0], "lower": b[0], "upper": b[1]}
+        for block, b in zip(functional.blocks, functional.set_bounds(xi))
+    ]
     return SolveResult(
         model=model.name,
         direction=getattr(solver, "label", solver.name),

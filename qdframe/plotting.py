@@ -23,19 +23,24 @@ def plot_result(result: SolveResult, path: str | Path) -> None:
 
     for i, name in enumerate(result.state_names):
         trajectories.plot(result.t, result.x[:, i], label=name)
-    trajectories.set(title="trajectories x(t)", xlabel="t")
-    trajectories.legend()
+    title = "trajectories x(t)"
+    if result.u is not None:  # the unknown controls (paper Figure 4 shows u(t))
+        for j in range(result.u.shape[1]):
+            trajectories.plot(result.t, result.u[:, j], "k--", lw=1.2, label=f"u{j + 1}" if result.u.shape[1] > 1 else "u")
+        title = "trajectories x(t) and controls u(t)"
+    trajectories.set(title=title, xlabel="t")
+    trajectories.legend(ncol=2 if len(result.state_names) > 3 else 1, fontsize="small")
 
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    one_d = [i for i, b in enumerate(result.set_bounds) if b is not None]
     for i in range(n):
         color = colors[i % len(colors)]
         velocities.plot(result.t, result.z[:, i], color=color, label=f"z{i + 1}")
-    # bounds of the 1-D sets F_b(x(t)), in block order (each covers one coordinate)
-    for block_index in one_d:
-        bounds = result.set_bounds[block_index]
+    # bounds of the one-coordinate sets F_i(x(t)), colored as their coordinate
+    for bounds in result.set_bounds:
+        if bounds is None:
+            continue
         lower, upper = np.asarray(bounds["lower"]), np.asarray(bounds["upper"])
-        color = colors[block_index % len(colors)]
+        color = colors[bounds["coordinate"] % len(colors)]
         velocities.fill_between(result.t, lower, upper, color=color, alpha=0.15, lw=0)
         velocities.plot(result.t, lower, color=color, ls="--", lw=0.8)
         velocities.plot(result.t, upper, color=color, ls=":", lw=0.8)
