@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
 from .registry import GROUPS, KIND_LABEL, available
@@ -134,6 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
     bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")
     benches.add_parser("hard", help="the hard-case suite: what each case measured")
+    add_run_parser(benches)
 
     add_check_parser(commands)
     return parser
@@ -149,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "simulate":
             return _simulate(args)
         if args.command == "bench":
-            return _bench_hard() if args.bench_command == "hard" else _bench_directions(args)
+            commands = {"run": main_run, "hard": lambda _args: _bench_hard(), "directions": _bench_directions}
+            return commands[args.bench_command](args)
         if args.command == "check-model":
             return main_check(args)
         return _solve(args)

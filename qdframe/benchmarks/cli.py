@@ -1,0 +1,153 @@
+"""`qdframe bench run`: its arguments and what it does with them.
+
+``add_run_parser(bench_subparsers)`` adds the ``run`` subcommand to ``qdframe bench`` and
+``main_run(args)`` runs it (exit status 0, or 1 when a run could not be recorded).
+Until the command is wired into ``qdframe``, ``python -m qdframe.benchmarks run ...`` runs
+the same code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from collections.abc import Sequence
+
+from ..errors import InputError
+from .report import summary_table, write_report
+from .sweep import SUITES, plan, run_sweep
+
+
+def _names(text: str) -> list[str]:
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected comma-separated names like a,b, got {text!r}")
+    return names
+
+
+def _nodes(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated node counts like 11,51, got {text!r}") from None
+    if not values or any(v < 2 for v in values):
+        raise argparse.ArgumentTypeError(f"expected node counts ≥ 2, got {text!r}")
+    return values
+
+
+def _count(minimum: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}")
+        return value
+
+    return parse
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
+    if not (value > 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number of seconds, got {text!r}")
+    return value
+
+
+def add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
+    """Add `run` to the subparsers of `qdframe bench`; returns its parser."""
+    run = bench_subparsers.add_parser(
+        "run",
+        help="sweep models × directions × line searches × grids (and peers); speed against error",
+        description="Run a sweep and write results.csv, results.json (with histories), figures and report.md "
+        "into --out, row by row (--resume continues an interrupted sweep).",
+    )
+    run.add_argument("--suite", choices=sorted(SUITES), default="quick",
+                     help="quick: paper-7.1..7.3 and the two peer problems × 3 directions × N = 11, 51 "
+                     "(≤ 100 iterations); full: every model, direction and line search × N = 11, 101, 1001")
+    run.add_argument("--models", type=_names, metavar="NAME,..", help="only these models (default: the suite's)")
+    run.add_argument("--directions", type=_names, metavar="NAME,..", help="only these directions (default: the suite's)")
+    run.add_argument("--line-searches", type=_names, metavar="NAME,..",
+                     help="every direction with each of these (default: each direction's own; full: all)")
+    run.add_argument("--nodes", type=_nodes, metavar="N,..", help="grids (default: the suite's)")
+    run.add_argument("--peers", action="store_true", help="also run nosnoc on the problems it can state")
+    run.add_argument("--executor", choices=("local", "dask"), default="local",
+                     help="local: one run after another here; dask: on dask.distributed (default local)")
+    run.add_argument("--scheduler", metavar="ADDRESS",
+                     help="with --executor dask: an existing scheduler (default: a LocalCluster)")
+    run.add_argument("--workers", type=_count(1), help="with --executor dask and no --scheduler: LocalCluster workers (default: CPUs)")
+    run.add_argument("--max-iter", type=_count(0), help="iteration budget per run (default: the suite's)")
+    run.add_argument("--time-limit", type=_seconds, metavar="SECONDS", help="wall-time limit per run (default: the suite's)")
+    run.add_argument("--resume", action="store_true", help="keep the rows already in --out and run the rest")
+    run.add_argument("--out", default="qdframe-bench", metavar="DIR", help="output directory (default ./qdframe-bench)")
+    run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return run
+
+
+def main_run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
+    """Run `qdframe bench run` with parsed `args`."""
+    if args.scheduler and args.executor != "dask":
+        raise InputError("--scheduler", "to be used with --executor dask", args.scheduler)
+    sweep = plan(
+        suite=args.suite,
+        models=args.models,
+        directions=args.directions,
+        line_searches=args.line_searches,
+        nodes=args.nodes,
+        peers=args.peers,
+        max_iter=args.max_iter,
+        time_limit_s=args.time_limit,
+    )
+    say = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+    command = "qdframe bench run " + " ".join(shlex.quote(a) for a in (argv if argv is not None else _echo(args)))
+    if say:
+        models = sweep.settings["models"]
+        say(f"{len(sweep.cases)} runs: {len(models)} models × directions {', '.join(sweep.settings['directions'])} "
+            f"× N = {', '.join(map(str, sweep.settings['nodes']))}" + (" + peers" if args.peers else ""))
+        for name, why in sweep.skipped.items():
+            say(f"skipped direction {name}: {why}")
+        if args.peers and not any(case.peer for case in sweep.cases):
+            say("--peers: no model of the sweep is one the peers can state (coulomb-rest-to-rest, sliding-mode-terminal)")
+    try:
+        outcome = run_sweep(sweep, args.out, resume=args.resume, executor=args.executor, scheduler=args.scheduler,
+                            workers=args.workers, progress=say, command=command)
+    except KeyboardInterrupt:
+        print(f"qdframe: interrupted; the finished runs are in {args.out}: add --resume to continue",
+              file=sys.stderr)
+        return 130
+    paths = write_report(outcome.rows, outcome.meta, args.out, seconds=outcome.seconds)
+    if not args.quiet:
+        tol = sweep.settings["residual_tol"]
+        print(summary_table(outcome.rows, tol, sweep.settings["time_limit_s"]))
+        print(f"\n{outcome.ran} runs in {outcome.seconds:.1f} s ({outcome.resumed} resumed); "
+              f"{paths['report']}, {paths['speed_vs_error']}, results.csv, results.json in {args.out}")
+    return 0
+
+
+def _echo(args: argparse.Namespace) -> list[str]:
+    """The options of `args` as a command line (for the report)."""
+    words = ["--suite", args.suite]
+    for flag, value in (("--models", args.models), ("--directions", args.directions),
+                        ("--line-searches", args.line_searches)):
+        if value:
+            words += [flag, ",".join(value)]
+    if args.nodes:
+        words += ["--nodes", ",".join(map(str, args.nodes))]
+    words += ["--peers"] if args.peers else []
+    if args.executor != "local":
+        words += ["--executor", args.executor]
+    if args.scheduler:
+        words += ["--scheduler", args.scheduler]
+    if args.workers:
+        words += ["--workers", str(args.workers)]
+    if args.max_iter is not None:
+        words += ["--max-iter", str(args.max_iter)]
+    if args.time_limit is not None:
+        words += ["--time-limit", f"{args.time_limit:g}"]
+    words += ["--resume"] if args.resume else []
+    words += ["--out", args.out]
+    return words

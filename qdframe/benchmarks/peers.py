@@ -1,0 +1,212 @@
+"""Peers: other tools run on the same problems and judged by qdframe's own residual checks.
+
+nosnoc (PyPI ``nosnoc``, FESD + homotopy + IPOPT through CasADi) solves the two problems
+of :mod:`qdframe.benchmarks.models` as optimal-control problems: the bounded input is a
+control with box bounds, the cost is nosnoc's example cost (∫u² for the block, ∫(v1² + v2²)
+for the sliding-mode problem) and the end state is a terminal equality constraint.
+
+Discretization for a sweep's grid of N nodes: 10 control stages × ⌈(N − 1)/10⌉ finite
+elements each (N − 1 elements for N = 11, 51, 101, …), Radau IIA with n_s = 2 stage
+points, FESD step equilibration as nosnoc's defaults, complementarity tolerance 1e-9.
+
+How it is judged. nosnoc's trajectory is, on each finite element [t_e, t_e + h_e], the
+collocation polynomial of degree n_s through the element's start value and its stage
+values at τ = (0, c_1, …, c_ns) — by the collocation equations its derivative at the stage
+points is nosnoc's own velocity f(x, u, θ). At each of qdframe's N uniform nodes t_k we take
+x(t_k) from that polynomial and z(t_k) = its slope; at an element boundary, the mean of the
+slopes of the two adjacent elements (see :func:`reconstruct`), build ξ = (x, z) with ``Functional.pack`` and report
+``Functional.terms``/``Functional.residuals`` — exactly the checks a qdframe run gets.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+from importlib import metadata
+
+import numpy as np
+
+from ..functional import Functional
+from ..grid import Grid
+from ..model import InclusionModel
+from .models import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
+
+NOSNOC_STAGES = 10
+PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name)}
+INSTALL_HINT = "pip install 'qdframe[peers]' (or pip install nosnoc)"
+
+
+@dataclass
+class PeerRun:
+    """What a peer produced, already judged on qdframe's grid."""
+
+    status: str  # "solved" when the peer reports success, "failed" otherwise
+    message: str
+    iterations: int
+    wall_time_s: float
+    setup_time_s: float
+    x: np.ndarray | None = None
+    z: np.ndarray | None = None
+    history: list[dict] = field(default_factory=list)  # per homotopy step: iteration, I, objective, time_s
+
+
+def nosnoc_available() -> str | None:
+    """None if nosnoc imports, else the reason (with the pip command)."""
+    try:
+        with warnings.catch_warnings():  # nosnoc sets warnings.simplefilter("always") on import
+            import casadi  # noqa: F401
+            import nosnoc  # noqa: F401
+    except Exception as exc:  # ImportError, or a broken CasADi binary
+        return f"nosnoc is not usable here ({type(exc).__name__}: {exc}); {INSTALL_HINT}"
+    return None
+
+
+def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
+    """Solve `model` (one of PEER_MODELS["nosnoc"]) with nosnoc and judge it on N = `nodes`."""
+    reason = nosnoc_available()
+    if reason is not None:
+        return PeerRun("failed", reason, 0, float("nan"), float("nan"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import casadi as ca
+        import nosnoc
+
+    functional = Functional(model, Grid(model.T, nodes))
+    start = time.perf_counter()
+    nos_model, ocp = _problem(model, ca, nosnoc)
+    opts = nosnoc.NosnocOpts()
+    opts.terminal_time = model.T
+    opts.N_stages = NOSNOC_STAGES
+    opts.N_finite_elements = max(1, math.ceil((nodes - 1) / NOSNOC_STAGES))
+    opts.n_s = 2
+    opts.comp_tol = 1e-9
+    opts.print_level = 0
+    chatter = io.StringIO()
+    with warnings.catch_warnings(), contextlib.redirect_stdout(chatter):
+        warnings.simplefilter("ignore")
+        solver = nosnoc.NosnocSolver(opts, nos_model, ocp)
+        setup = time.perf_counter() - start
+        results = solver.solve()
+    wall = time.perf_counter() - start
+
+    tau = _collocation_nodes(opts)
+    x, z = reconstruct(results, tau, functional.grid.t)
+    history, elapsed = [], setup
+    for step, w in enumerate(results["w_all"][1:], start=1):
+        iterate = nosnoc.get_results_from_primal_vector(solver.problem, w)
+        terms = functional.terms(functional.pack(*reconstruct(iterate, tau, functional.grid.t)))
+        elapsed += float(results["cpu_time_nlp"][step - 1] or 0.0)
+        history.append({"iteration": step, "objective": terms.objective, "I": terms.I, "time_s": elapsed})
+    success = results["status"] == nosnoc.Status.SUCCESS
+    ipopt_iterations = int(sum(i for i in results["nlp_iter"] if i is not None))
+    steps = sum(1 for i in results["nlp_iter"] if i is not None)
+    complementarity = float(solver.problem.comp_res(results["w_sol"], solver.p_val).full()[0][0])
+    message = (
+        f"nosnoc {_version('nosnoc')}, CasADi {_version('casadi')}"
+        + f": {'success' if success else 'IPOPT did not converge'} after {steps} homotopy steps "
+        f"({ipopt_iterations} IPOPT iterations), complementarity {complementarity:.1e}, own cost "
+        f"{float(results['cost_val']):.4g}; {NOSNOC_STAGES} stages × {opts.N_finite_elements} finite elements, "
+        f"Radau IIA n_s = 2; setup (CasADi/IPOPT build) {setup:.2f} s"
+    )
+    if "Warning" in chatter.getvalue():
+        message += "; " + chatter.getvalue().strip().splitlines()[-1]
+    return PeerRun("solved" if success else "failed", message, ipopt_iterations, wall, setup, x, z, history)
+
+
+def _version(distribution: str) -> str:
+    try:
+        return metadata.version(distribution)
+    except metadata.PackageNotFoundError:
+        return "?"
+
+
+def _collocation_nodes(opts) -> np.ndarray:
+    """τ = (0, c_1, …, c_ns) of nosnoc's integral IRK representation."""
+    points = np.asarray(opts.irk_time_points, dtype=float)
+    return points if np.isclose(points[0], 0.0) else np.concatenate([[0.0], points])
+
+
+def reconstruct(results: dict, tau: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x and x' at times t from nosnoc's collocation polynomials (one per finite element).
+
+    Inside an element, the polynomial and its slope. At an interior element boundary (within
+    1e-3 of the shortest element; FESD moves boundaries by round-off), x from the element that
+    ends there and x' the mean of the end slope of that element and the start slope of the
+    next: each is a one-sided velocity, F(x) is convex, and the trapezoid rule then integrates
+    a velocity that jumps there (e.g. a piecewise-constant control) without drift.
+    """
+    steps = np.asarray(results["time_steps"], dtype=float).reshape(-1)
+    points = np.asarray(results["x_all_list"], dtype=float)  # x0, then n_s stage values per element
+    stages = tau.size - 1
+    if points.shape[0] != 1 + stages * steps.size:
+        raise ValueError(f"nosnoc returned {points.shape[0]} state values for {steps.size} elements of {stages} stages")
+    bounds = np.concatenate([[0.0], np.cumsum(steps)])  # element e is [bounds[e], bounds[e + 1]]
+    last = steps.size - 1
+    nearest = np.clip(np.searchsorted(bounds, t), 1, bounds.size - 1)
+    nearest = np.where(np.abs(t - bounds[nearest - 1]) < np.abs(t - bounds[nearest]), nearest - 1, nearest)
+    boundary = (np.abs(t - bounds[nearest]) <= 1e-3 * steps.min()) & (nearest > 0) & (nearest <= last)
+    element = np.clip(np.searchsorted(bounds, t, side="right") - 1, 0, last)
+    fraction = (t - bounds[element]) / steps[element]
+    element = np.where(boundary, nearest - 1, element)
+    fraction = np.where(boundary, 1.0, fraction)
+    x, slope = _polynomial(points, steps, stages, tau, element, fraction)
+    after = np.minimum(nearest, last)
+    _, slope_after = _polynomial(points, steps, stages, tau, after, np.zeros_like(t))
+    return x, np.where(boundary[:, None], 0.5 * (slope + slope_after), slope)
+
+
+def _polynomial(points, steps, stages, tau, element, fraction) -> tuple[np.ndarray, np.ndarray]:
+    """Value and slope of the collocation polynomials of `element` at τ = `fraction`."""
+    values = np.stack([points[element * stages + j] for j in range(stages + 1)], axis=1)  # (K, n_s + 1, n)
+    basis, slope = _lagrange(tau, fraction)
+    return np.einsum("kj,kjn->kn", basis, values), np.einsum("kj,kjn->kn", slope, values) / steps[element][:, None]
+
+
+def _lagrange(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lagrange basis ℓ_j(s) and ℓ_j'(s) on `nodes`, for every s: shapes (K, len(nodes))."""
+    count = nodes.size
+    basis, slope = np.ones((s.size, count)), np.zeros((s.size, count))
+    for j in range(count):
+        others = [r for r in range(count) if r != j]
+        for r in others:
+            basis[:, j] *= (s - nodes[r]) / (nodes[j] - nodes[r])
+        for q in others:
+            term = np.full(s.size, 1.0 / (nodes[j] - nodes[q]))
+            for r in others:
+                if r != q:
+                    term *= (s - nodes[r]) / (nodes[j] - nodes[r])
+            slope[:, j] += term
+    return basis, slope
+
+
+def _problem(model: InclusionModel, ca, nosnoc):
+    """nosnoc's model and OCP for one of the peer problems."""
+    S = [np.array([[1], [-1]])]  # mode 1 where c > 0, mode 2 where c < 0
+    if model.name == CoulombRestToRest.name:
+        position, velocity, force = ca.SX.sym("p"), ca.SX.sym("v"), ca.SX.sym("u")
+        x = ca.vertcat(position, velocity)
+        friction = model.friction
+        modes = ca.horzcat(ca.vertcat(velocity, force - friction), ca.vertcat(velocity, force + friction))
+        nos_model = nosnoc.NosnocModel(x=x, F=[modes], c=[velocity], S=S, x0=np.array(model.x0), u=force)
+        bound = model.force_bound * np.ones(1)
+        end = np.zeros(2)
+        end[list(model.end_indices)] = model.end_values
+        ocp = nosnoc.NosnocOcp(lbu=-bound, ubu=bound, f_q=force**2, g_terminal=x - end)
+        return nos_model, ocp
+    if model.name == SlidingModeTerminal.name:
+        x1, x2, v1, v2 = (ca.SX.sym(name) for name in ("x1", "x2", "v1", "v2"))
+        u1, u2 = ca.SX.sym("u1"), ca.SX.sym("u2")
+        x, u = ca.vertcat(x1, x2, v1, v2), ca.vertcat(u1, u2)
+        first = ca.horzcat(ca.vertcat(-1 + v1, 0, u1, u2), ca.vertcat(1 + v1, 0, u1, u2))
+        second = ca.horzcat(ca.vertcat(0, -1 + v2, u1, u2), ca.vertcat(0, 1 + v2, u1, u2))
+        switches = [x1 + SLIDING_A * x2**2, x2 + SLIDING_B * x1**3]
+        nos_model = nosnoc.NosnocModel(x=x, F=[first, second], c=switches, S=S + S, x0=np.array(model.x0), u=u)
+        bound = model.input_bound * np.ones(2)
+        target = np.asarray(model.end_values)
+        ocp = nosnoc.NosnocOcp(lbu=-bound, ubu=bound, f_q=v1**2 + v2**2, g_terminal=x[:2] - target)
+        return nos_model, ocp
+    raise ValueError(f"nosnoc has no statement of model {model.name!r}; it runs {', '.join(PEER_MODELS['nosnoc'])}")

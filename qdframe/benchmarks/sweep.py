@@ -1,0 +1,656 @@
+"""`qdframe bench run`: a sweep of models × direction solvers × line searches × grids (and peers).
+
+Each run is one :class:`Case`; :func:`run_case` turns it into one row (a plain dict) in
+whatever process executes it — this one (``local``) or a dask worker (``dask``). The
+driver alone writes the files, after every row: ``results.json`` (every row with its
+history) and ``results.csv`` (the same rows without histories), each replaced atomically,
+so an interrupted sweep loses at most the runs in flight. ``--resume`` keeps the rows
+present in both files (keyed by model, direction, line search, nodes) and runs the rest.
+
+Error measures of a row (all from qdframe's own checks, ``Functional.residuals``):
+
+* ``residual_error`` = max(boundary error, inclusion residual, consistency error,
+  surface error): how far the trajectory is from solving the problem on the grid;
+* ``error`` = the error against the model's exact solution (max over nodes and states of
+  |x − x*|) where the model knows one, else ``residual_error`` (``error_kind`` says which).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import json
+import math
+import os
+import platform
+import time
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..descent import make_direction, make_line_search, solve
+from ..directions.base import Direction, DirectionSolver
+from ..errors import InputError, QdframeError, UnknownNameError
+from ..functional import Functional
+from ..grid import Grid
+from ..model import InclusionModel
+from ..registry import available, lookup
+from .models import BENCH_MODELS
+from .peers import PEER_MODELS, run_nosnoc
+
+FORMAT = "qdframe-bench-run/1"
+KEY_FIELDS = ("model", "direction", "line_search", "nodes")
+FIELDS = (
+    "model", "direction", "line_search", "nodes", "status", "found", "iterations", "wall_time_s",
+    "setup_time_s", "objective", "I", "boundary_error", "inclusion_residual", "consistency_error",
+    "surface_error", "solution_error", "residual_error", "error", "error_kind", "max_iter",
+    "time_limit_s", "machine", "load_average", "started_at", "message",
+)
+PAPER_MODELS = ("paper-7.1", "paper-7.2", "paper-7.3")
+PEER_PROBLEMS = tuple(BENCH_MODELS)
+# direction preference of the quick suite: the default, the paper's, then one QP backend
+DIRECTION_PREFERENCE = ("gauss-newton", "native", "qpsolvers:daqp", "clarabel", "osqp", "cvxpy")
+RESIDUAL_TOL = 5e-3  # the paper's accuracy (boundary error ≤ 5e-3, Section 7)
+
+
+class MissingDependency(QdframeError):
+    """An optional package a requested feature needs is not installed."""
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A named sweep. `directions`: how many available directions (None: all);
+    `every_line_search`: each direction with every line search, else with its own."""
+
+    name: str
+    models: tuple[str, ...] | None  # None: every registered model and the peer problems
+    directions: int | None
+    grids: tuple[int, ...]
+    max_iter: int
+    time_limit_s: float
+    every_line_search: bool = False
+
+
+SUITES = {
+    "quick": Suite("quick", PAPER_MODELS + PEER_PROBLEMS, 3, (11, 51), max_iter=100, time_limit_s=60.0),
+    "full": Suite("full", None, None, (11, 101, 1001), max_iter=500, time_limit_s=600.0, every_line_search=True),
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One run. `peer` names the other tool (then `direction` is the peer's name and
+    `line_search` its inner solver), None for qdframe itself."""
+
+    model: str
+    direction: str
+    line_search: str
+    nodes: int
+    max_iter: int
+    time_limit_s: float | None
+    peer: str | None = None
+
+    @property
+    def key(self) -> tuple[str, str, str, int]:
+        return (self.model, self.direction, self.line_search, self.nodes)
+
+    @property
+    def label(self) -> str:
+        return f"{self.model} {self.direction}/{self.line_search} N={self.nodes}"
+
+
+@dataclass
+class Plan:
+    """The cases of a sweep, the directions left out (with why) and the settings."""
+
+    cases: list[Case]
+    skipped: dict[str, str] = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------- planning
+
+
+def model_names() -> list[str]:
+    """Every model a sweep can run: the registered ones and the peer problems."""
+    return sorted(set(available("models")) | set(BENCH_MODELS))
+
+
+def resolve_model(name: str) -> InclusionModel:
+    """A model instance by name: the registry first, then the benchmark's own problems."""
+    if name in available("models"):
+        return lookup("models", name).obj()
+    if name in BENCH_MODELS:
+        return BENCH_MODELS[name]()
+    raise UnknownNameError("model", name, model_names())
+
+
+def installed_directions(
+    preference: Sequence[str] = DIRECTION_PREFERENCE, qpsolvers_all: bool = False, limit: int | None = None
+):
+    """Names of the registered directions that can be built here, in preference order (the
+    first `limit` of them), and {name: why} for those that cannot. ``qpsolvers:`` expands to
+    qpsolvers:daqp (or, with `qpsolvers_all`, to every solver qpsolvers finds installed)."""
+    names = []
+    for name in sorted(available("directions")):
+        if name.endswith(":"):
+            names += _expand_prefix(name, qpsolvers_all)
+        else:
+            names.append(name)
+    rank = {name: i for i, name in enumerate(preference)}
+    names.sort(key=lambda n: (rank.get(n, len(rank)), n))
+    usable, skipped = [], {}
+    for name in names:
+        if limit is not None and len(usable) >= limit:
+            break
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                make_direction(name)
+        except Exception as exc:  # a missing package (BackendError) or a broken plugin
+            skipped[name] = str(exc) if isinstance(exc, QdframeError) else f"{type(exc).__name__}: {exc}"
+            continue
+        usable.append(name)
+    return usable, skipped
+
+
+def _expand_prefix(prefix: str, every: bool) -> list[str]:
+    if prefix != "qpsolvers:":
+        return []
+    try:
+        import qpsolvers
+    except ImportError:
+        return ["qpsolvers:daqp"]  # fails to build: reported as skipped with the pip command
+    solvers = sorted(qpsolvers.available_solvers)
+    if every:
+        return [prefix + s for s in solvers]
+    return [prefix + ("daqp" if "daqp" in solvers else solvers[0])] if solvers else []
+
+
+def plan(
+    suite: str = "quick",
+    models: Sequence[str] | None = None,
+    directions: Sequence[str] | None = None,
+    line_searches: Sequence[str] | None = None,
+    nodes: Sequence[int] | None = None,
+    peers: bool = False,
+    max_iter: int | None = None,
+    time_limit_s: float | None = None,
+) -> Plan:
+    """The cases of a sweep: the suite's choices, each overridden by an explicit list."""
+    if suite not in SUITES:
+        raise InputError("--suite", f"one of: {', '.join(SUITES)}", suite)
+    spec = SUITES[suite]
+    known = model_names()
+    models = list(models) if models is not None else list(spec.models) if spec.models is not None else known
+    for name in models:
+        if name not in known:
+            raise UnknownNameError("model", name, known)
+    skipped: dict[str, str] = {}
+    if directions is None:
+        directions, skipped = installed_directions(qpsolvers_all=spec.directions is None, limit=spec.directions)
+    else:
+        for name in directions:
+            lookup("directions", name)  # an unknown name is a usage error; an uninstalled one a failed row
+    searches = list(available("line_searches"))
+    for name in line_searches or ():
+        lookup("line_searches", name)
+    grids = tuple(nodes) if nodes is not None else spec.grids
+    if any(isinstance(n, bool) or int(n) != n or n < 2 for n in grids):
+        raise InputError("--nodes", "node counts ≥ 2 like 11,51", ",".join(map(str, grids)))
+    max_iter = spec.max_iter if max_iter is None else max_iter
+    time_limit_s = spec.time_limit_s if time_limit_s is None else time_limit_s
+    cases = []
+    for model in models:
+        for direction in directions:
+            if line_searches:
+                pairs = list(line_searches)
+            elif spec.every_line_search:
+                pairs = sorted(searches)
+            else:
+                pairs = [_default_line_search(direction)]
+            for search in pairs:
+                for n in grids:
+                    cases.append(Case(model, direction, search, int(n), max_iter, time_limit_s))
+    if peers:
+        for peer, problems in PEER_MODELS.items():
+            for model in models:
+                if model in problems:
+                    cases += [Case(model, peer, "ipopt", int(n), max_iter, time_limit_s, peer=peer) for n in grids]
+    settings = {
+        "suite": suite,
+        "models": list(models),
+        "directions": list(directions),
+        "line_searches": list(line_searches) if line_searches else ("every" if spec.every_line_search else "own"),
+        "nodes": list(grids),
+        "peers": bool(peers),
+        "max_iter": max_iter,
+        "time_limit_s": time_limit_s,
+        "residual_tol": RESIDUAL_TOL,
+    }
+    return Plan(cases, skipped, settings)
+
+
+def _default_line_search(direction: str) -> str:
+    return lookup("directions", direction).obj.default_line_search
+
+
+# ------------------------------------------------------------------------- one run
+
+
+def machine() -> str:
+    """This machine in one line: host, CPU model, logical CPUs, OS, Python, NumPy."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as handle:
+            for line in handle:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return (
+        f"{platform.node()}; {cpu}; {os.cpu_count()} logical CPUs; {platform.system()} {platform.release()}; "
+        f"Python {platform.python_version()}; NumPy {np.__version__}"
+    )
+
+
+class _Deadline(DirectionSolver):
+    """Wraps a direction: past `seconds` after the solve starts it reports "stationary"
+    with a zero step, which ends the descent; `expired` then says the limit stopped it."""
+
+    def __init__(self, inner: DirectionSolver, seconds: float) -> None:
+        self.inner = inner
+        self.seconds = seconds
+        self.name = inner.name  # type: ignore[misc]
+        self.label = getattr(inner, "label", inner.name)
+        self.default_line_search = inner.default_line_search  # type: ignore[misc]
+        self.expired = False
+        self._deadline = math.inf
+
+    def start(self, functional: Functional) -> None:
+        self.inner.start(functional)
+        self.expired = False
+        self._deadline = time.perf_counter() + self.seconds
+
+    def compute(self, functional: Functional, xi: np.ndarray, delta: float) -> Direction:
+        if time.perf_counter() > self._deadline:
+            self.expired = True
+            return Direction(np.zeros_like(xi), np.zeros(xi.shape[0]), 0.0, stationary=True)
+        return self.inner.compute(functional, xi, delta)
+
+
+def run_case(case: Case) -> dict:
+    """Run one case and return its row (never raises: a failure is a row with status failed)."""
+    row = {name: None for name in FIELDS}
+    row.update(model=case.model, direction=case.direction, line_search=case.line_search, nodes=case.nodes,
+               max_iter=case.max_iter, time_limit_s=case.time_limit_s, machine=machine(),
+               load_average=_load_average(), started_at=_now(), setup_time_s=0.0)
+    history: dict[str, list] = {"iteration": [], "objective": [], "I": [], "time_s": []}
+    clock = time.perf_counter()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if case.peer is None:
+                _run_qdframe(case, row, history)
+            else:
+                _run_peer(case, row, history)
+        notes = sorted({f"{w.category.__name__}: {w.message}" for w in caught if not _ignorable(w)})
+        if notes:
+            row["message"] = "; ".join(filter(None, [row["message"], f"{len(notes)} warning(s), first: {notes[0][:200]}"]))
+    except Exception as exc:  # a failing run is a result, not an abort
+        row.update(status="failed", message=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - clock)
+    row["found"] = row["status"] == "solved"
+    row["history"] = history
+    return _finite(row)
+
+
+def _ignorable(warning) -> bool:
+    return issubclass(warning.category, (DeprecationWarning, PendingDeprecationWarning, ResourceWarning))
+
+
+def _run_qdframe(case: Case, row: dict, history: dict) -> None:
+    model = resolve_model(case.model)
+    solver = make_direction(case.direction)
+    timed = _Deadline(solver, case.time_limit_s) if case.time_limit_s else solver
+    result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search),
+                   max_iter=case.max_iter)
+    status, message = result.status, result.message
+    if isinstance(timed, _Deadline) and timed.expired:
+        status = "time_limit"
+        message = f"time limit {case.time_limit_s:g} s reached after {result.iterations} iterations"
+    row.update(status=status, message=message, iterations=result.iterations, wall_time_s=result.wall_time_s,
+               objective=result.objective, I=result.I, boundary_error=result.boundary_error,
+               inclusion_residual=result.inclusion_residual, consistency_error=result.consistency_error,
+               surface_error=result.surface_error, solution_error=result.solution_error)
+    for record in result.history:
+        for name in history:
+            history[name].append(getattr(record, name))
+    _errors(row)
+
+
+def _run_peer(case: Case, row: dict, history: dict) -> None:
+    if case.peer != "nosnoc":
+        raise InputError("peer", "nosnoc", case.peer)
+    model = resolve_model(case.model)
+    peer = run_nosnoc(model, case.nodes)
+    row.update(status=peer.status, message=peer.message, iterations=peer.iterations,
+               wall_time_s=peer.wall_time_s, setup_time_s=peer.setup_time_s)
+    if peer.x is None:
+        return
+    functional = Functional(model, Grid(model.T, case.nodes))
+    xi = functional.pack(peer.x, peer.z)
+    terms, residuals = functional.terms(xi), functional.residuals(xi)
+    exact = model.exact_solution(functional.grid.t)
+    row.update(objective=terms.objective, I=terms.I, boundary_error=residuals.boundary_error,
+               inclusion_residual=residuals.inclusion_residual, consistency_error=residuals.consistency_error,
+               surface_error=residuals.surface_error,
+               solution_error=None if exact is None else float(np.max(np.abs(functional.split(xi)[0] - exact))))
+    for record in peer.history:
+        for name in history:
+            history[name].append(record[name])
+    _errors(row)
+
+
+def _errors(row: dict) -> None:
+    parts = [row["boundary_error"], row["inclusion_residual"], row["consistency_error"], row["surface_error"] or 0.0]
+    row["residual_error"] = float(max(parts))
+    known = row["solution_error"] is not None
+    row["error"] = row["solution_error"] if known else row["residual_error"]
+    row["error_kind"] = "solution" if known else "residual"
+
+
+def _finite(value):
+    """Non-finite floats to None (JSON has no NaN), NumPy scalars to Python ones."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def _load_average() -> float | None:
+    try:
+        return round(os.getloadavg()[0], 2)
+    except (OSError, AttributeError):
+        return None
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+# ------------------------------------------------------------------------- the files
+
+
+def row_key(row: dict) -> tuple[str, str, str, int]:
+    return (str(row["model"]), str(row["direction"]), str(row["line_search"]), int(row["nodes"]))
+
+
+class ResultStore:
+    """results.json and results.csv in `out`, rewritten (atomically) after every row."""
+
+    def __init__(self, out: str | Path, resume: bool = False) -> None:
+        self.out = Path(out)
+        self.json_path = self.out / "results.json"
+        self.csv_path = self.out / "results.csv"
+        self.rows: dict[tuple, dict] = {}
+        self.meta: dict = {}
+        self.dropped: list[tuple] = []  # keys found in only one of the two files (rerun)
+        if self.out.exists() and not self.out.is_dir():
+            raise InputError("--out", "a directory (it is created if missing)", str(out))
+        existing = self.json_path.exists() or self.csv_path.exists()
+        if existing and not resume:
+            raise InputError("--out", f"a directory without results, or --resume to continue the ones in {out}", str(out))
+        self.out.mkdir(parents=True, exist_ok=True)
+        if resume and existing:
+            self._load()
+
+    def _load(self) -> None:
+        from_json: dict[tuple, dict] = {}
+        if self.json_path.exists():
+            try:
+                data = json.loads(self.json_path.read_text())
+                self.meta = {k: v for k, v in data.items() if k != "rows"}
+                from_json = {row_key(r): r for r in data.get("rows", [])}
+            except (ValueError, KeyError, TypeError) as exc:
+                warnings.warn(f"{self.json_path} is unreadable ({exc}); resuming from {self.csv_path.name} alone")
+                from_json = {}
+        from_csv = {row_key(r): r for r in read_csv(self.csv_path)} if self.csv_path.exists() else {}
+        if not from_json:
+            for row in from_csv.values():
+                row.setdefault("history", {"iteration": [], "objective": [], "I": [], "time_s": []})
+            self.rows = from_csv
+        elif not from_csv:
+            self.rows = from_json
+        else:
+            self.rows = {k: r for k, r in from_json.items() if k in from_csv}
+            self.dropped = sorted(set(from_json) ^ set(from_csv), key=str)
+
+    def done(self) -> set[tuple]:
+        return set(self.rows)
+
+    def add(self, row: dict, order: Sequence[tuple] = ()) -> None:
+        self.rows[row_key(row)] = row
+        self.write(order)
+
+    def ordered(self, order: Sequence[tuple] = ()) -> list[dict]:
+        """Rows in the sweep's order, then any others in the order they were recorded."""
+        planned = [self.rows[k] for k in order if k in self.rows]
+        seen = set(order)
+        return planned + [r for k, r in self.rows.items() if k not in seen]
+
+    def write(self, order: Sequence[tuple] = ()) -> None:
+        rows = self.ordered(order)
+        document = {**self.meta, "format": FORMAT, "updated_at": _now(), "rows": rows}
+        _atomic(self.json_path, json.dumps(_finite(document), indent=1, allow_nan=False) + "\n")
+        _atomic(self.csv_path, _csv_text(rows))
+
+
+def _csv_text(rows: Iterable[dict]) -> str:
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=FIELDS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: _csv_cell(row.get(k)) for k in FIELDS})
+    return buffer.getvalue()
+
+
+def _csv_cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+INT_FIELDS = {"nodes", "iterations", "max_iter"}
+TEXT_FIELDS = {"model", "direction", "line_search", "status", "error_kind", "machine", "started_at", "message"}
+
+
+def read_csv(path: str | Path) -> list[dict]:
+    """The rows of a results.csv, with numbers parsed back (empty cells are None)."""
+    rows = []
+    with open(path, newline="", encoding="utf-8") as handle:
+        for raw in csv.DictReader(handle):
+            row = {}
+            for name, text in raw.items():
+                if name is None:
+                    continue
+                if text in ("", None):
+                    row[name] = None
+                elif name in TEXT_FIELDS:
+                    row[name] = text
+                elif name == "found":
+                    row[name] = text == "true"
+                elif name in INT_FIELDS:
+                    row[name] = int(float(text))
+                else:
+                    row[name] = float(text)
+            rows.append(row)
+    return rows
+
+
+def _atomic(path: Path, text: str) -> None:
+    temporary = path.with_name(path.name + ".tmp")
+    with open(temporary, "w", encoding="utf-8") as handle:
+        handle.write(text)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(temporary, path)
+
+
+# ------------------------------------------------------------------------- executors
+
+
+def execute(
+    cases: Sequence[Case],
+    on_row: Callable[[dict], None],
+    executor: str = "local",
+    scheduler: str | None = None,
+    workers: int | None = None,
+) -> None:
+    """Run `cases`, calling `on_row` in this process with each row as it completes."""
+    if executor == "local":
+        for case in cases:
+            on_row(run_case(case))
+        return
+    if executor != "dask":
+        raise InputError("--executor", "local or dask", executor)
+    _execute_dask(cases, on_row, scheduler, workers)
+
+
+def _dask():
+    try:
+        import distributed
+    except ImportError as exc:
+        raise MissingDependency(
+            f"--executor dask needs dask.distributed: pip install 'qdframe[dask]' (or pip install 'dask[distributed]')"
+            f" ({type(exc).__name__}: {exc})"
+        ) from exc
+    return distributed
+
+
+def _execute_dask(cases, on_row, scheduler, workers) -> None:
+    import logging
+
+    distributed = _dask()
+    cluster = None
+    if scheduler:
+        try:
+            client = distributed.Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError("--scheduler", "the address of a running dask scheduler, like tcp://host:8786",
+                             f"{scheduler} ({type(exc).__name__}: {exc})") from exc
+    else:
+        cluster = distributed.LocalCluster(
+            n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+            dashboard_address=None, silence_logs=logging.ERROR,
+        )
+        client = distributed.Client(cluster)
+    try:
+        futures = {client.submit(run_case, case, key=f"qdframe-bench-{i}-{case.label}", pure=False): case
+                   for i, case in enumerate(cases)}
+        for future in distributed.as_completed(futures):
+            case = futures[future]
+            try:
+                row = future.result()
+            except Exception as exc:  # the worker died or the task could not run
+                row = {name: None for name in FIELDS}
+                row.update(model=case.model, direction=case.direction, line_search=case.line_search,
+                           nodes=case.nodes, status="failed", found=False, max_iter=case.max_iter,
+                           time_limit_s=case.time_limit_s, message=f"dask: {type(exc).__name__}: {exc}",
+                           history={"iteration": [], "objective": [], "I": [], "time_s": []})
+            on_row(row)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+# ------------------------------------------------------------------------- the sweep
+
+
+@dataclass
+class SweepOutcome:
+    """What a sweep did: the rows now on file, how many it ran and how many it skipped."""
+
+    rows: list[dict]
+    ran: int
+    resumed: int
+    plan: Plan
+    seconds: float
+    dropped: list = field(default_factory=list)
+    meta: dict = field(default_factory=dict)
+
+
+def run_sweep(
+    sweep: Plan,
+    out: str | Path,
+    resume: bool = False,
+    executor: str = "local",
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: Callable[[str], None] | None = None,
+    command: str | None = None,
+) -> SweepOutcome:
+    """Run the plan's cases not yet in `out` and record each row as it arrives."""
+    if executor == "dask":
+        _dask()  # fail before any work when dask is missing
+    say = progress or (lambda text: None)
+    store = ResultStore(out, resume=resume)
+    done = store.done()
+    pending = [case for case in sweep.cases if case.key not in done]
+    order = [case.key for case in sweep.cases]
+    store.meta.update({
+        "settings": sweep.settings,
+        "skipped_directions": sweep.skipped,
+        "executor": executor if executor == "local" else f"dask ({scheduler or 'LocalCluster'})",
+        "driver_machine": machine(),
+        "qdframe_version": _version(),
+        "command": command or store.meta.get("command"),
+    })
+    store.meta.setdefault("started_at", _now())
+    resumed = len(sweep.cases) - len(pending)
+    if resumed:
+        say(f"resuming: {resumed} of {len(sweep.cases)} runs already in {out}")
+    for key in store.dropped:
+        say(f"resume: {'/'.join(map(str, key))} was in only one of results.json and results.csv: run again")
+    start = time.perf_counter()
+    count = [0]
+
+    def record(row: dict) -> None:
+        store.add(row, order)
+        count[0] += 1
+        error = row.get("error")
+        say(f"[{count[0]}/{len(pending)}] {row['model']} {row['direction']}/{row['line_search']} N={row['nodes']}: "
+            f"{row['status']}, {row['iterations']} it, {_fmt_seconds(row.get('wall_time_s'))}, "
+            f"error {'—' if error is None else f'{error:.1e}'}")
+
+    execute(pending, record, executor=executor, scheduler=scheduler, workers=workers)
+    store.write(order)  # also when every run was already there: the settings of this call
+    meta = {**store.meta, "updated_at": _now()}
+    return SweepOutcome(store.ordered(order), count[0], resumed, sweep, time.perf_counter() - start, store.dropped, meta)
+
+
+def _fmt_seconds(value) -> str:
+    return "— s" if value is None else f"{value:.2f} s"
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__

@@ -1,0 +1,200 @@
+"""`qdframe bench run` (issue 7): sweep files, resume, qpbenchmark-style metrics, dask, peers.
+
+Runs go through `python -m qdframe.benchmarks run` (`qdframe.benchmarks.cli.main`), the
+same parser and `main_run` that `qdframe bench run` wires in. Timings are never asserted.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import sys
+
+import numpy as np
+import pytest
+
+from qdframe.cli import main as qdframe_main
+from qdframe.benchmarks import peers as bench_peers
+from qdframe.benchmarks import sweep as bench_sweep
+from qdframe.benchmarks.report import shifted_geometric_mean, summarize
+from qdframe.benchmarks.sweep import Case, read_csv, run_case
+
+TINY = ["run", "--models", "paper-7.1,coulomb-rest-to-rest", "--directions", "gauss-newton,native",
+        "--nodes", "11", "--max-iter", "15", "--quiet"]
+TIMING_FIELDS = {"wall_time_s", "setup_time_s", "machine", "load_average", "started_at", "history"}
+
+
+def _rows(out):
+    return json.loads((out / "results.json").read_text())["rows"]
+
+
+def _key(row):
+    return (row["model"], row["direction"], row["line_search"], row["nodes"])
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench") / "tiny"
+    assert qdframe_main(["bench", *TINY, "--out", str(out)]) == 0
+    return out
+
+
+def test_tiny_sweep_writes_csv_json_figures_and_report(tiny):
+    for name in ("results.csv", "results.json", "report.md"):
+        assert (tiny / name).stat().st_size > 0
+    for name in ("speed_vs_error.png", "error_vs_nodes.png", "objective_history.png"):
+        assert (tiny / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = _rows(tiny)
+    assert sorted(map(_key, rows)) == sorted(
+        (model, direction, search, 11)
+        for model in ("paper-7.1", "coulomb-rest-to-rest")
+        for direction, search in (("gauss-newton", "armijo"), ("native", "golden"))
+    )
+    for row in rows:
+        assert row["status"] in {"solved", "stationary", "max_iter"}
+        assert len(row["history"]["I"]) == row["iterations"] + 1
+        assert row["residual_error"] == max(row["boundary_error"], row["inclusion_residual"],
+                                            row["consistency_error"], row["surface_error"] or 0.0)
+        assert row["machine"] and row["max_iter"] == 15
+    by_key = {_key(r): r for r in rows}
+    exact = by_key[("paper-7.1", "gauss-newton", "armijo", 11)]
+    assert exact["status"] == "solved" and exact["found"] and exact["error_kind"] == "solution"
+    assert exact["error"] == exact["solution_error"] < 1e-6
+    assert by_key[("coulomb-rest-to-rest", "native", "golden", 11)]["error_kind"] == "residual"
+    table = read_csv(tiny / "results.csv")
+    assert [(_key(r), r["status"], r["iterations"]) for r in table] == [(_key(r), r["status"], r["iterations"]) for r in rows]
+    report = (tiny / "report.md").read_text()
+    assert "success rate" in report and "correct rate" in report and "| gauss-newton / armijo | 2 | 100 |" in report
+    assert "![speed against error](speed_vs_error.png)" in report
+
+
+def test_results_in_out_need_resume(tiny, capsys):
+    assert qdframe_main(["bench", *TINY, "--out", str(tiny)]) == 2
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_resume_after_deleting_a_row_runs_only_that_row(tiny, tmp_path, monkeypatch):
+    out = tmp_path / "copy"
+    shutil.copytree(tiny, out)
+    lines = (out / "results.csv").read_text().splitlines(keepends=True)
+    deleted = lines.pop(2)  # the header is line 0
+    (out / "results.csv").write_text("".join(lines))
+    ran = []
+    real = bench_sweep.run_case
+    monkeypatch.setattr(bench_sweep, "run_case", lambda case: ran.append(case.key) or real(case))
+    assert qdframe_main(["bench", *TINY, "--out", str(out), "--resume"]) == 0
+    assert len(ran) == 1 and deleted.startswith(",".join(map(str, ran[0])) + ",")
+    rows = _rows(out)
+    assert len(rows) == len({_key(r) for r in rows}) == 4
+    assert len(read_csv(out / "results.csv")) == 4
+
+
+def test_interrupted_sweep_resumes_without_duplicates(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "interrupted"
+    real = bench_sweep.run_case
+    done = []
+
+    def interrupted(case):
+        if len(done) == 2:
+            raise KeyboardInterrupt
+        done.append(case.key)
+        return real(case)
+
+    monkeypatch.setattr(bench_sweep, "run_case", interrupted)
+    assert qdframe_main(["bench", *TINY, "--out", str(out)]) == 130
+    assert "--resume" in capsys.readouterr().err
+    assert sorted(map(_key, _rows(out))) == sorted(done)
+    assert len(read_csv(out / "results.csv")) == 2
+    monkeypatch.setattr(bench_sweep, "run_case", real)
+    assert qdframe_main(["bench", *TINY, "--out", str(out), "--resume"]) == 0
+    rows = _rows(out)
+    assert len(rows) == len({_key(r) for r in rows}) == 4
+    assert len(read_csv(out / "results.csv")) == 4
+    assert (out / "report.md").exists()
+
+
+def test_shifted_geometric_mean_and_rates_by_hand():
+    assert shifted_geometric_mean([1.0, 2.0]) == pytest.approx(math.sqrt(11 * 12) - 10)
+    assert shifted_geometric_mean([0.0, 0.0], shift=10) == pytest.approx(0.0)
+
+    def row(direction, time, found, residual):
+        return {"direction": direction, "line_search": "ls", "model": "m", "nodes": 11, "wall_time_s": time,
+                "found": found, "residual_error": residual, "error": residual, "time_limit_s": 20.0}
+
+    rows = [
+        row("a", 1.0, True, 1e-9), row("a", 2.0, True, 1e-9),  # both solved and confirmed
+        row("b", 3.0, True, 1e-9), row("b", 5.0, False, 0.3),  # one not solved: at the time limit, 20 s
+        row("c", 0.5, True, 1.0), row("c", 0.5, True, 1e-9),  # one "solved" the residuals do not confirm
+    ]
+    table = {t["solver"]: t for t in summarize(rows, residual_tol=5e-3)}
+    a, b, c = table["a / ls"], table["b / ls"], table["c / ls"]
+    assert (a["success_rate"], a["correct_rate"]) == (100.0, 100.0)
+    assert (b["success_rate"], b["correct_rate"]) == (50.0, 100.0)
+    assert (c["success_rate"], c["correct_rate"]) == (50.0, 50.0)
+    assert a["runtime_shm_s"] == pytest.approx(math.sqrt(11 * 12) - 10)
+    assert b["runtime_shm_s"] == pytest.approx(math.sqrt(13 * 30) - 10)
+    assert c["runtime_shm_s"] == pytest.approx(0.5)  # runtime counts every run that reports success
+    assert c["runtime_shm"] == pytest.approx(1.0)
+    assert a["runtime_shm"] == pytest.approx((math.sqrt(11 * 12) - 10) / 0.5)
+    assert b["runtime_shm"] == pytest.approx((math.sqrt(13 * 30) - 10) / 0.5)
+    assert (c["claimed"], c["confirmed"]) == (2, 1)
+
+
+def test_time_limit_ends_a_run_with_its_own_status():
+    row = run_case(Case("paper-7.1", "native", "golden", 11, max_iter=50, time_limit_s=1e-9))
+    assert row["status"] == "time_limit" and not row["found"] and row["iterations"] == 0
+    assert "time limit" in row["message"] and row["residual_error"] is not None
+
+
+def test_unknown_model_is_a_usage_error(tmp_path, capsys):
+    assert qdframe_main(["bench", "run", "--models", "no-such-model", "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    assert "no-such-model" in capsys.readouterr().err
+
+
+def test_missing_dask_names_the_pip_command(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed → ImportError
+    assert qdframe_main(["bench", *TINY, "--out", str(tmp_path / "d"), "--executor", "dask"]) == 1
+    assert "pip install 'qdframe[dask]'" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()  # it fails before any work
+
+
+def test_dask_executor_gives_the_same_rows(tiny, tmp_path):
+    pytest.importorskip("distributed")
+    out = tmp_path / "dask"
+    assert qdframe_main(["bench", *TINY, "--out", str(out), "--executor", "dask", "--workers", "1"]) == 0
+    local, remote = _rows(tiny), _rows(out)
+    assert [_key(r) for r in local] == [_key(r) for r in remote]
+    for a, b in zip(local, remote):
+        assert {k: v for k, v in a.items() if k not in TIMING_FIELDS} == {k: v for k, v in b.items() if k not in TIMING_FIELDS}
+        assert a["history"]["I"] == b["history"]["I"]
+
+
+@pytest.mark.parametrize("model", ["coulomb-rest-to-rest", "sliding-mode-terminal"])
+def test_nosnoc_rows_have_finite_errors(model):
+    pytest.importorskip("nosnoc")
+    if bench_peers.nosnoc_available() is not None:
+        pytest.skip(bench_peers.nosnoc_available())
+    row = run_case(Case(model, "nosnoc", "ipopt", 11, max_iter=100, time_limit_s=60.0, peer="nosnoc"))
+    assert row["status"] == "solved", row["message"]  # nosnoc's own success report
+    for name in ("objective", "I", "boundary_error", "inclusion_residual", "consistency_error", "residual_error", "error"):
+        assert row[name] is not None and np.isfinite(row[name]), name
+    assert row["iterations"] > 0 and row["history"]["I"] and "homotopy" in row["message"]
+
+
+def test_a_missing_peer_is_a_failed_row_with_the_reason(monkeypatch):
+    monkeypatch.setattr(bench_peers, "nosnoc_available", lambda: "nosnoc is not usable here; pip install nosnoc")
+    row = run_case(Case("coulomb-rest-to-rest", "nosnoc", "ipopt", 11, 100, 60.0, peer="nosnoc"))
+    assert row["status"] == "failed" and "pip install" in row["message"] and row["error"] is None
+
+
+def test_quick_suite_plan_has_three_models_two_grids_and_peers():
+    sweep = bench_sweep.plan("quick", peers=True)
+    models = {c.model for c in sweep.cases if c.peer is None}
+    assert {"paper-7.1", "paper-7.2", "paper-7.3"} <= models and len(models) >= 3
+    assert sorted({c.nodes for c in sweep.cases}) == [11, 51]
+    directions = {c.direction for c in sweep.cases if c.peer is None}
+    assert {"gauss-newton", "native"} <= directions and len(directions) == min(3, len(sweep.settings["directions"]))
+    assert {(c.model, c.nodes) for c in sweep.cases if c.peer == "nosnoc"} == {
+        (m, n) for m in ("coulomb-rest-to-rest", "sliding-mode-terminal") for n in (11, 51)
+    }
