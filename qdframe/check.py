@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .argtypes import integer, positive_float
 from .errors import InputError, QdframeError
 from .model import InclusionModel
 
@@ -296,43 +297,19 @@ def _shape(shape: tuple) -> str:
 
 
 # ------------------------------------------------------------------ command line
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer ≥ 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer ≥ 1, got {text!r}")
-    return value
 
 
-def _nonnegative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer ≥ 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer ≥ 0, got {text!r}")
-    return value
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
-    return value
 
 
 def add_check_parser(subparsers) -> argparse.ArgumentParser:
     """Add `check-model` to the `qdframe` command's subparsers (cli.build_parser)."""
     parser = subparsers.add_parser("check-model", help="check a model's pieces and gradients against finite differences")
     parser.add_argument("model", help="model name (see `qdframe list`)")
-    parser.add_argument("--samples", type=_positive_int, default=64, help="random points (default 64)")
-    parser.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed (default 0)")
-    parser.add_argument("--tol", type=_positive_float, default=1e-6,
+    parser.add_argument("--samples", type=integer(1), default=64, help="random points (default 64)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
+    parser.add_argument("--tol", type=positive_float, default=1e-6,
                         help="largest gradient error |fd − ∂|/max(1, |∂|) accepted (default 1e-6)")
     parser.add_argument("--json", metavar="FILE", help="write the report as JSON")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")

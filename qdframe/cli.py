@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .argtypes import finite_float, integer, node_counts, positive_float, vector
 from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
@@ -32,57 +33,14 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(f"{self.prog}: error: {message}")
 
 
-def _positive_int(minimum: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}")
-        return value
-
-    return parse
 
 
-def _node_list(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated node counts like 11,101, got {text!r}") from None
-    if any(v < 2 for v in values):
-        raise argparse.ArgumentTypeError(f"expected node counts ≥ 2, got {text!r}")
-    return values
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
-    return value
 
 
-def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not np.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
 
 
-def _vector(text: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers like 0,1.5,-2, got {text!r}") from None
-    if not all(np.isfinite(values)):
-        raise argparse.ArgumentTypeError(f"expected finite numbers (no NaN or inf), got {text!r}")
-    return values
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -99,28 +57,28 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--direction", default="gauss-newton",
                        help="direction solver (default: gauss-newton; the paper's method: native)")
     solve.add_argument("--line-search", help="line search (default: the direction's: armijo for gauss-newton, golden for native)")
-    solve.add_argument("--nodes", type=_positive_int(2), default=101, help="grid nodes N ≥ 2 (default 101)")
-    solve.add_argument("--max-iter", type=_positive_int(0), default=500, help="iteration budget (default 500)")
-    solve.add_argument("--continuation", type=_node_list, default=(), metavar="N,N,..",
+    solve.add_argument("--nodes", type=integer(2), default=101, help="grid nodes N ≥ 2 (default 101)")
+    solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
+    solve.add_argument("--continuation", type=node_counts, default=(), metavar="N,N,..",
                        help="coarser grids to solve on first, e.g. 11,101")
-    solve.add_argument("--tol", type=_positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
-    solve.add_argument("--delta", type=_positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
-    solve.add_argument("--eps", type=_positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
-    solve.add_argument("--gamma-max", type=_positive_float, default=1.0, help="line-search bound γ̄ (default 1)")
-    solve.add_argument("--T", type=_positive_float, help="final time (overrides the model's)")
-    solve.add_argument("--x0", type=_vector, help="initial state V,V,... (overrides the model's)")
-    solve.add_argument("--xT", type=_vector, help="end values of the fixed coordinates J, in order")
+    solve.add_argument("--tol", type=positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
+    solve.add_argument("--delta", type=positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
+    solve.add_argument("--eps", type=positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
+    solve.add_argument("--gamma-max", type=positive_float, default=1.0, help="line-search bound γ̄ (default 1)")
+    solve.add_argument("--T", type=positive_float, help="final time (overrides the model's)")
+    solve.add_argument("--x0", type=vector, help="initial state V,V,... (overrides the model's)")
+    solve.add_argument("--xT", type=vector, help="end values of the fixed coordinates J, in order")
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
     simulate = commands.add_parser("simulate", help="Filippov initial-value simulation of a model")
     simulate.add_argument("model", help="model name (see `qdframe list`)")
-    simulate.add_argument("--from", dest="t_start", type=_finite_float, required=True, help="start time T0")
-    simulate.add_argument("--to", dest="t_end", type=_finite_float, required=True, help="end time T1 > T0")
-    simulate.add_argument("--x0", type=_vector, required=True, help="state at T0: V,V,... (write --x0=-1,1 for a leading minus)")
-    simulate.add_argument("--u", type=_vector, help="constant controls (default 0)")
-    simulate.add_argument("--dt", type=_positive_float, default=1e-4, help="time step (default 1e-4)")
+    simulate.add_argument("--from", dest="t_start", type=finite_float, required=True, help="start time T0")
+    simulate.add_argument("--to", dest="t_end", type=finite_float, required=True, help="end time T1 > T0")
+    simulate.add_argument("--x0", type=vector, required=True, help="state at T0: V,V,... (write --x0=-1,1 for a leading minus)")
+    simulate.add_argument("--u", type=vector, help="constant controls (default 0)")
+    simulate.add_argument("--dt", type=positive_float, default=1e-4, help="time step (default 1e-4)")
     simulate.add_argument("--json", metavar="FILE", help="write the trajectory as JSON")
     simulate.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
@@ -129,8 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_directions = benches.add_parser(
         "directions", help="time every installed min-norm direction backend against native"
     )
-    bench_directions.add_argument("--nodes", type=_positive_int(2), default=1001, help="grid nodes N ≥ 2 (default 1001)")
-    bench_directions.add_argument("--repeat", type=_positive_int(1), default=3, help="timed passes R ≥ 1 (default 3)")
+    bench_directions.add_argument("--nodes", type=integer(2), default=1001, help="grid nodes N ≥ 2 (default 1001)")
+    bench_directions.add_argument("--repeat", type=integer(1), default=3, help="timed passes R ≥ 1 (default 3)")
     bench_directions.add_argument("--directions", metavar="NAME,NAME,..", help="only these directions (default: all installed)")
     bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
     bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")

@@ -13,49 +13,18 @@ import shlex
 import sys
 from collections.abc import Sequence
 
+from ..argtypes import integer, names, node_counts, positive_float
 from ..errors import InputError
 from .report import summary_table, write_report
 from .sweep import SUITES, plan, run_sweep
 
 
-def _names(text: str) -> list[str]:
-    names = [name.strip() for name in text.split(",") if name.strip()]
-    if not names:
-        raise argparse.ArgumentTypeError(f"expected comma-separated names like a,b, got {text!r}")
-    return names
 
 
-def _nodes(text: str) -> list[int]:
-    try:
-        values = [int(v) for v in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated node counts like 11,51, got {text!r}") from None
-    if not values or any(v < 2 for v in values):
-        raise argparse.ArgumentTypeError(f"expected node counts ≥ 2, got {text!r}")
-    return values
 
 
-def _count(minimum: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {minimum}, got {text!r}")
-        return value
-
-    return parse
 
 
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
-    if not (value > 0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a positive finite number of seconds, got {text!r}")
-    return value
 
 
 def add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
@@ -69,19 +38,19 @@ def add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
     run.add_argument("--suite", choices=sorted(SUITES), default="quick",
                      help="quick: paper-7.1..7.3 and the two peer problems × 3 directions × N = 11, 51 "
                      "(≤ 100 iterations); full: every model, direction and line search × N = 11, 101, 1001")
-    run.add_argument("--models", type=_names, metavar="NAME,..", help="only these models (default: the suite's)")
-    run.add_argument("--directions", type=_names, metavar="NAME,..", help="only these directions (default: the suite's)")
-    run.add_argument("--line-searches", type=_names, metavar="NAME,..",
+    run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")
+    run.add_argument("--directions", type=names, metavar="NAME,..", help="only these directions (default: the suite's)")
+    run.add_argument("--line-searches", type=names, metavar="NAME,..",
                      help="every direction with each of these (default: each direction's own; full: all)")
-    run.add_argument("--nodes", type=_nodes, metavar="N,..", help="grids (default: the suite's)")
+    run.add_argument("--nodes", type=node_counts, metavar="N,..", help="grids (default: the suite's)")
     run.add_argument("--peers", action="store_true", help="also run nosnoc on the problems it can state")
     run.add_argument("--executor", choices=("local", "dask"), default="local",
                      help="local: one run after another here; dask: on dask.distributed (default local)")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="with --executor dask: an existing scheduler (default: a LocalCluster)")
-    run.add_argument("--workers", type=_count(1), help="with --executor dask and no --scheduler: LocalCluster workers (default: CPUs)")
-    run.add_argument("--max-iter", type=_count(0), help="iteration budget per run (default: the suite's)")
-    run.add_argument("--time-limit", type=_seconds, metavar="SECONDS", help="wall-time limit per run (default: the suite's)")
+    run.add_argument("--workers", type=integer(1), help="with --executor dask and no --scheduler: LocalCluster workers (default: CPUs)")
+    run.add_argument("--max-iter", type=integer(0), help="iteration budget per run (default: the suite's)")
+    run.add_argument("--time-limit", type=positive_float, metavar="SECONDS", help="wall-time limit per run (default: the suite's)")
     run.add_argument("--resume", action="store_true", help="keep the rows already in --out and run the rest")
     run.add_argument("--out", default="qdframe-bench", metavar="DIR", help="output directory (default ./qdframe-bench)")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
