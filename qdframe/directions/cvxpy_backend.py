@@ -11,8 +11,8 @@ it once (it is DPP) and every later chunk and direction only sets the parameter 
 and re-solves. The solver is CVXPY's `solver` (default CLARABEL) with the tight
 `solver_options` of ``DEFAULT_OPTIONS``. Any status but ``optimal`` (e.g.
 ``optimal_inaccurate``, which CVXPY only warns about) or a SolverError is a failure of
-every row of the chunk, and every row is then checked as :mod:`qdframe.directions.qp`
-describes; failed rows are retried in chunks of `retry_chunk_rows`. Needs ``pip install 'qdframe[cvxpy]'``.
+every row of the chunk, and every row is then checked and polished as
+:mod:`qdframe.directions.qp` describes; failed rows are retried in chunks of `retry_chunk_rows`. Needs ``pip install 'qdframe[cvxpy]'``.
 """
 
 from __future__ import annotations

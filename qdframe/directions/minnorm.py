@@ -426,6 +426,23 @@ def _solve_on_support(c: np.ndarray, a: np.ndarray, support: np.ndarray) -> np.n
     return np.where(is_base, 1.0 - lam.sum(axis=1, keepdims=True), lam)
 
 
+def solve_on_support(center: np.ndarray, generators: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """The exact step of the active-set method, batch first: least-squares weights on a support.
+
+    center (B, d), generators (B, G, m, d) (row-scaled), support (B, G, m) bool with at least
+    one True per group. Returns λ (B, G, m): 0 off the support, every group summing to 1,
+    c + Σ λ a the minimum-norm point of the affine hull of the support (dependent directions
+    are dropped, so λ may be negative even where a nonnegative λ reaches the same point).
+    Used by the QP backends' polish (:mod:`qdframe.directions.qp`).
+    """
+    lam = _solve_on_support(
+        np.ascontiguousarray(center.T),
+        np.ascontiguousarray(generators.transpose(1, 2, 3, 0)),
+        np.ascontiguousarray(support.transpose(1, 2, 0)),
+    )
+    return np.ascontiguousarray(lam.transpose(2, 0, 1))
+
+
 @dataclass
 class _Fista:
     """FISTA with adaptive restart on λ.

@@ -7,8 +7,10 @@ shape and chunk; later directions only replace the values of A and the bounds
 ``warm_starting``). ADMM runs to eps 1e-6 and the solution is then polished (OSQP's
 active-set refinement, with 20 refinement steps), which makes it exact once the active
 set is right; anything but the status ``solved`` is a failure of every row of the chunk,
-and every row is then checked as :mod:`qdframe.directions.qp` describes. Rows that fail
-are solved again with eps `retry_eps` = 1e-12. (Measured: ADMM alone to eps 1e-10 takes
+and every row is then checked and polished as :mod:`qdframe.directions.qp` describes (OSQP's
+refinement ends a few rows with the active set off by a near-active entry, e.g. 14 of the
+bench's 10000 collinear rows; the exact polish repairs them). Rows that still fail are
+solved again with eps `retry_eps` = 1e-12. (Measured: ADMM alone to eps 1e-10 takes
 ~38000 iterations, and ends ``solved inaccurate`` at max_iter 100000 without eps 1e-9,
 when the minimum-norm point is 0 — zero multipliers, no strict complementarity — while
 eps 1e-6 + polish is exact there in ~2400.) Needs
