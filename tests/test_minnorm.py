@@ -473,3 +473,17 @@ def test_property_fallback_is_optimal_too(instance):
         minnorm.PATTERN_CAP = original
     assert_kkt(center, generators, mask, points, weights)
     assert_matches_reference(center, generators, mask, points)
+
+
+def test_groups_of_one_repeated_point_above_the_enumeration_limit():
+    """Every group's active entries are one point repeated, with > 64 support patterns: the
+    iterative path must stay finite and exact (it divided by zero when a whole group blocked)."""
+    rng = np.random.default_rng(0)
+    center = rng.normal(size=(1000, 2))
+    generators = rng.normal(size=(1000, 4, 1, 2)).repeat(3, axis=2)
+    mask = np.ones((1000, 4, 3), dtype=bool)
+    points, weights = min_norm_point(center, generators, mask)
+    assert np.all(np.isfinite(points)) and np.all(np.isfinite(weights))
+    expected = center + generators[:, :, 0, :].sum(axis=1)  # each group is a single point
+    np.testing.assert_allclose(points, expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(weights.sum(axis=2), 1.0, atol=1e-12)

@@ -388,8 +388,13 @@ def _active_set_polish(
         blocking = supported & (target < 0.0)
         ratio = np.divide(current, current - target, out=np.full(current.shape, np.inf), where=blocking)
         step = np.minimum(ratio.min(axis=(0, 1)), 1.0)
-        moved = current + step * (target - current)
-        moved = np.where(supported & (ratio > step) & (moved > 0.0), moved, 0.0)
+        raw = current + step * (target - current)
+        moved = np.where(supported & (ratio > step) & (raw > 0.0), raw, 0.0)
+        emptied = moved.sum(axis=1) <= 0.0  # (groups, rows): all entries blocked at once (ties)
+        if emptied.any():  # keep the largest supported entry of such a group, with weight 1
+            best = np.where(supported, raw, -np.inf).argmax(axis=1)
+            g, r = np.nonzero(emptied)
+            moved[g, best[g, r], r] = 1.0
         moved /= moved.sum(axis=1, keepdims=True)
         supported = moved > 0.0
 
