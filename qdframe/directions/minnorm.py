@@ -94,7 +94,7 @@ def min_norm_point(center: np.ndarray, generators: np.ndarray, mask: np.ndarray)
     Raises :class:`~qdframe.errors.InputError` (a ValueError) naming the argument for
     wrong shapes, a non-boolean mask, non-finite values or an empty group.
     """
-    center, generators, mask = _validate_shapes(center, generators, mask)
+    center, generators, mask = validate_batch(center, generators, mask)
     rows, groups, width, _ = generators.shape
     if groups == 0 or rows == 0:
         return center.copy(), np.zeros((rows, groups, width))
@@ -117,7 +117,9 @@ def min_norm_point(center: np.ndarray, generators: np.ndarray, mask: np.ndarray)
 # ----------------------------------------------------------------------------- input
 
 
-def _validate_shapes(center: object, generators: object, mask: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def validate_batch(center: object, generators: object, mask: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A min-norm batch as float arrays center (B, d), generators (B, G, m, d) and a bool
+    mask (B, G, m); a wrong shape or type is an InputError naming the argument."""
     center = _real_array("center", center)
     generators = _real_array("generators", generators)
     mask = np.asarray(mask)

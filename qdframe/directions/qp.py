@@ -66,7 +66,7 @@ import scipy.sparse as sp
 
 from ..errors import BackendError, InputError
 from .base import Direction, MinNormDirection
-from .minnorm import min_norm_point, solve_on_support
+from .minnorm import min_norm_point, solve_on_support, validate_batch
 
 if TYPE_CHECKING:
     from ..quasidifferential import Quasidifferential
@@ -112,16 +112,8 @@ class ScaledBatch:
 
     @classmethod
     def prepare(cls, center: object, generators: object, mask: object) -> "ScaledBatch":
-        center = np.asarray(center, dtype=float)
-        generators = np.asarray(generators, dtype=float)
-        mask = np.asarray(mask)
-        if center.ndim != 2:
-            raise InputError("center", "a 2-D array of shape (B, d)", center.shape)
-        rows, dim = center.shape
-        if generators.ndim != 4 or generators.shape[0] != rows or generators.shape[3] != dim:
-            raise InputError("generators", f"an array of shape ({rows}, G, m, {dim})", generators.shape)
-        if mask.shape != generators.shape[:3] or mask.dtype != bool:
-            raise InputError("mask", f"a boolean array of shape {generators.shape[:3]}", (mask.shape, str(mask.dtype)))
+        center, generators, mask = validate_batch(center, generators, mask)
+        rows = center.shape[0]
         if generators.shape[1] and not mask.any(axis=2).all():
             row, group = np.argwhere(~mask.any(axis=2))[0]
             raise InputError("mask", "at least one True entry in every group of every row", f"row {row}, group {group} empty")
