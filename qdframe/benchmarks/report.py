@@ -160,8 +160,8 @@ def plot_speed_vs_error(rows: Sequence[dict], path: str | Path, residual_tol: fl
     plt.close(fig)
 
 
-def plot_error_vs_nodes(rows: Sequence[dict], path: str | Path) -> None:
-    """Error against N (log-log), one panel per model, one line per solver."""
+def _panels(rows: Sequence[dict]):
+    """pyplot, a figure with one panel per model (up to 3 a line), the models, solvers and colors."""
     plt = _pyplot()
     models = sorted({r["model"] for r in rows})
     solvers = sorted({solver_label(r) for r in rows})
@@ -169,6 +169,12 @@ def plot_error_vs_nodes(rows: Sequence[dict], path: str | Path) -> None:
     columns = min(3, max(1, len(models)))
     lines = math.ceil(len(models) / columns) if models else 1
     fig, axes = plt.subplots(lines, columns, figsize=(4.6 * columns, 3.6 * lines), squeeze=False, constrained_layout=True)
+    return plt, fig, axes, models, solvers, colors
+
+
+def plot_error_vs_nodes(rows: Sequence[dict], path: str | Path) -> None:
+    """Error against N (log-log), one panel per model, one line per solver."""
+    plt, fig, axes, models, solvers, colors = _panels(rows)
     for ax, model in zip(axes.flat, models):
         for i, solver in enumerate(solvers):
             points = sorted((r["nodes"], max(r["error"], FLOOR)) for r in rows
@@ -193,13 +199,7 @@ def plot_error_vs_nodes(rows: Sequence[dict], path: str | Path) -> None:
 
 def plot_histories(rows: Sequence[dict], path: str | Path) -> None:
     """I against iteration (log scale) on each model's finest grid, one line per solver."""
-    plt = _pyplot()
-    models = sorted({r["model"] for r in rows})
-    solvers = sorted({solver_label(r) for r in rows})
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    columns = min(3, max(1, len(models)))
-    lines = math.ceil(len(models) / columns) if models else 1
-    fig, axes = plt.subplots(lines, columns, figsize=(4.6 * columns, 3.6 * lines), squeeze=False, constrained_layout=True)
+    plt, fig, axes, models, solvers, colors = _panels(rows)
     for ax, model in zip(axes.flat, models):
         finest = max(r["nodes"] for r in rows if r["model"] == model)
         for i, solver in enumerate(solvers):
