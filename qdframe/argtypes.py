@@ -68,6 +68,16 @@ def node_counts(text: str) -> tuple[int, ...]:
     return values
 
 
+def continuation(text: str) -> str | tuple[int, ...]:
+    """"auto", "none" or comma-separated node counts ≥ 2."""
+    if text in ("auto", "none"):
+        return text
+    try:
+        return node_counts(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected auto, none or node counts like 11,101, got {text!r}") from None
+
+
 def names(text: str) -> list[str]:
     """Comma-separated names."""
     found = [name.strip() for name in text.split(",") if name.strip()]

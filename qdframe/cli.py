@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .argtypes import finite_float, integer, node_counts, positive_float, vector
+from .argtypes import continuation, finite_float, integer, positive_float, vector
 from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
@@ -59,8 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--line-search", help="line search (default: the direction's: armijo for gauss-newton, golden for native)")
     solve.add_argument("--nodes", type=integer(2), default=101, help="grid nodes N ≥ 2 (default 101)")
     solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
-    solve.add_argument("--continuation", type=node_counts, default=(), metavar="N,N,..",
-                       help="coarser grids to solve on first, e.g. 11,101")
+    solve.add_argument("--continuation", type=continuation, metavar="auto|none|N,N,..",
+                       help="coarser grids to solve on first, e.g. 11,101; auto: 11, 101, ... below N "
+                            "(default: the direction's: auto for the paper's method, none for gauss-newton)")
     solve.add_argument("--tol", type=positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
     solve.add_argument("--delta", type=positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
     solve.add_argument("--eps", type=positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
@@ -243,7 +244,7 @@ def _progress_printer():
     def show(record) -> None:
         print(
             f"\riteration {record.iteration:5d}   objective {record.objective:.3e}   "
-            f"I {record.I:.3e}   step {record.step:.2e}",
+            f"I {record.I:.3e}   step {record.step:.2e}   N {record.nodes}",
             end="",
             file=sys.stderr,
             flush=True,

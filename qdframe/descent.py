@@ -69,16 +69,22 @@ def solve(
     delta: float = 1e-3,
     eps: float = 1e-2,
     gamma_max: float = 1.0,
-    continuation: Sequence[int] = (),
+    continuation: Sequence[int] | str | None = None,
     progress: ProgressCallback | None = None,
 ) -> SolveResult:
     """Find a trajectory of `model` by quasidifferential descent.
 
     `direction` "gauss-newton" (the default) or "native" (the paper's method), or any
     registered name or DirectionSolver; `line_search` likewise, by default the
-    direction's own (`default_line_search`: armijo for gauss-newton, golden for native). `continuation` lists
-    coarser grids to solve on first (e.g. (11, 101) before nodes=1001): each solution,
-    interpolated, starts the next grid; the result's history and iterations cover all.
+    direction's own (`default_line_search`: armijo for gauss-newton, golden for native).
+
+    `continuation` lists coarser grids to solve on first (e.g. (11, 101) before
+    nodes=1001): each grid's result, interpolated, starts the next. "auto" is the ladder
+    11, 101, 1001, … below `nodes` (:func:`grid_schedule`), "none" (or ()) the one grid,
+    None the direction's own (`default_continuation`: "auto" for the paper's min-norm
+    directions, "none" for gauss-newton). `max_iter` is the budget of all grids together;
+    the history and `iterations` cover all, each record naming its grid (`nodes`); each
+    grid after the first adds a record of its interpolated start (same iteration number).
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
@@ -92,25 +98,67 @@ def solve(
     )
     solver = make_direction(direction)
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
-    grids = [int(n) for n in continuation] + [nodes]
-    if any(b <= a for a, b in zip(grids, grids[1:])):
-        raise InputError("continuation", f"increasing node counts below nodes = {nodes}", tuple(continuation))
-    start, history, result = None, [], None
+    grids = grid_schedule(nodes, solver.default_continuation if continuation is None else continuation)
+    start, history, result, wall = None, [], None, 0.0
     for count in grids:
         functional = Functional(model, Grid(model.T, count))
         if result is not None:
             start = _interpolate(functional, result)
-        result = descend(functional, solver, search, options, progress, start)
-        history += result.history if not history else [
-            dataclasses.replace(r, iteration=r.iteration + history[-1].iteration,
-                                time_s=r.time_s + history[-1].time_s) for r in result.history[1:]
-        ]
+        used = history[-1].iteration if history else 0
+        stage = dataclasses.replace(options, max_iter=options.max_iter - used)
+        result = descend(functional, solver, search, stage, _shifted(progress, history), start)
+        elapsed = history[-1].time_s if history else 0.0
+        history += [dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed) for r in result.history]
+        wall += result.wall_time_s
         if result.status == "failed":
+            if count != nodes:
+                result.message = f"on the coarse grid of {count} nodes: {result.message}"
             break
     result.history = history
     result.iterations = history[-1].iteration
-    result.wall_time_s = history[-1].time_s if len(grids) > 1 else result.wall_time_s
+    result.wall_time_s = wall
+    result.options = {**result.options, "max_iter": options.max_iter, "grids": grids}
+    if result.status == "max_iter":
+        result.message = f"{options.max_iter} iterations spent" + (f" over the grids {grids}" if len(grids) > 1 else "")
     return result
+
+
+COARSEST_NODES = 11  # step T/10, the paper's final step in Section 7
+
+
+def grid_schedule(nodes: int, continuation: Sequence[int] | str) -> list[int]:
+    """The grids a solve runs on, coarsest first, ending with `nodes`.
+
+    "auto": 11, 101, 1001, … (step T/10 refined tenfold) below `nodes`; "none" or ():
+    `nodes` alone; a sequence: those node counts (increasing, below `nodes`), then `nodes`.
+    Starting the paper's first-order descent from a coarse solution keeps its iteration
+    count flat in N: on a fine grid alone the δ-active kinks of many nodes cut its steps.
+    """
+    if isinstance(continuation, str):
+        if continuation == "auto":
+            coarse, ladder = [], COARSEST_NODES
+            while ladder < nodes:
+                coarse.append(ladder)
+                ladder = 10 * (ladder - 1) + 1
+            return coarse + [nodes]
+        if continuation == "none":
+            return [nodes]
+        raise InputError("continuation", '"auto", "none" or increasing node counts', continuation)
+    counts = list(continuation)
+    if any(isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2 for n in counts):
+        raise InputError("continuation", "node counts ≥ 2", tuple(continuation))
+    grids = [int(n) for n in counts] + [nodes]
+    if any(b <= a for a, b in zip(grids, grids[1:])):
+        raise InputError("continuation", f"increasing node counts below nodes = {nodes}", tuple(continuation))
+    return grids
+
+
+def _shifted(progress: ProgressCallback | None, history: list[IterationRecord]) -> ProgressCallback | None:
+    """`progress` fed with iteration numbers and times counted over all grids so far."""
+    if progress is None or not history:
+        return progress
+    used, elapsed = history[-1].iteration, history[-1].time_s
+    return lambda r: progress(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed))
 
 
 def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
@@ -137,7 +185,8 @@ def descend(
     solver.start(functional)
     xi = functional.initial_point() if start is None else np.array(start, dtype=float)
     terms = functional.terms(xi)
-    history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), functional.boundary_error(xi), 0.0)]
+    nodes = functional.grid.nodes
+    history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), functional.boundary_error(xi), 0.0, nodes)]
     status, message = "max_iter", f"{options.max_iter} iterations spent"
     weights = functional.weights
     try:
@@ -175,6 +224,7 @@ def descend(
                 deviation,
                 functional.boundary_error(xi),
                 time.perf_counter() - clock,
+                nodes,
             )
             history.append(record)
             if progress is not None:

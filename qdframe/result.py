@@ -24,6 +24,7 @@ class IterationRecord:
     deviation: float  # max_k ‖v̄_k + w̄_k‖ of that direction
     boundary_error: float  # max_j |x0_j + ∫z_j − xT_j| after the step
     time_s: float  # seconds since the solve started
+    nodes: int  # the grid of this iterate (grids change under continuation)
 
 
 @dataclass
@@ -79,7 +80,7 @@ class SolveResult:
             ("model", self.model),
             ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
             ("direction / line search", f"{self.direction} / {self.line_search}"),
-            ("nodes, T", f"{self.nodes}, {self.T:g}"),
+            ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []))),
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),
@@ -96,6 +97,10 @@ class SolveResult:
             rows.append(("error vs known solution", f"{self.solution_error:.3e}"))
         width = max(len(k) for k, _ in rows)
         return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def _grids(grids: list[int]) -> str:
+    return f"  (continued from {', '.join(map(str, grids[:-1]))})" if len(grids) > 1 else ""
 
 
 def _plain(value: Any) -> Any:

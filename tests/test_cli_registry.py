@@ -30,6 +30,16 @@ def test_solve_writes_json_and_plot(tmp_path, capsys):
     assert "status" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("flag, grids", [([], [11, 51]), (["--continuation", "none"], [51]),
+                                         (["--continuation", "auto"], [11, 51]), (["--continuation", "21"], [21, 51])])
+def test_continuation_flag(flag, grids, tmp_path):
+    out = tmp_path / "r.json"
+    assert main(["solve", "paper-7.2", "--direction", "native", "--nodes", "51", "--quiet", "--json", str(out)] + flag) == 0
+    data = json.loads(out.read_text())
+    assert data["options"]["grids"] == grids and data["nodes"] == 51
+    assert sorted({record["nodes"] for record in data["history"]}) == grids
+
+
 def test_overrides_reach_the_model(tmp_path):
     out = tmp_path / "r.json"
     assert main(["solve", "paper-7.2", "--nodes", "5", "--max-iter", "0", "--T", "2", "--x0=0.5,-1",
@@ -55,6 +65,8 @@ def test_overrides_reach_the_model(tmp_path):
         (["solve", "paper-7.2", "--direction", "bogus"], "direction"),
         (["solve", "paper-7.2", "--line-search", "bogus"], "line search"),
         (["solve", "paper-7.2", "--json", "/nonexistent-dir/r.json"], "--json"),
+        (["solve", "paper-7.2", "--continuation", "fine"], "--continuation"),
+        (["solve", "paper-7.2", "--continuation", "101", "--nodes", "51"], "continuation"),
     ],
 )
 def test_bad_arguments_end_in_one_line_naming_the_field(args, field, capsys):

@@ -268,13 +268,16 @@ class _Deadline(DirectionSolver):
         self.name = inner.name  # type: ignore[misc]
         self.label = getattr(inner, "label", inner.name)
         self.default_line_search = inner.default_line_search  # type: ignore[misc]
+        self.default_continuation = inner.default_continuation  # type: ignore[misc]
         self.expired = False
         self._deadline = math.inf
 
     def start(self, functional: Functional) -> None:
+        """Called once per grid: the clock starts with the first (the limit covers all grids)."""
         self.inner.start(functional)
-        self.expired = False
-        self._deadline = time.perf_counter() + self.seconds
+        if math.isinf(self._deadline):
+            self.expired = False
+            self._deadline = time.perf_counter() + self.seconds
 
     def compute(self, functional: Functional, xi: np.ndarray, delta: float) -> Direction:
         if time.perf_counter() > self._deadline:

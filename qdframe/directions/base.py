@@ -46,6 +46,7 @@ class DirectionSolver(ABC):
 
     name: ClassVar[str] = ""
     default_line_search: ClassVar[str] = "golden"  # used when the caller names none
+    default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (descent.grid_schedule)
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional`: reset any state kept between iterations."""
@@ -56,7 +57,14 @@ class DirectionSolver(ABC):
 
 
 class MinNormDirection(DirectionSolver):
-    """The paper's direction; subclasses supply the batched min-norm QP solver."""
+    """The paper's direction; subclasses supply the batched min-norm QP solver.
+
+    By default a solve with it starts on coarse grids ("auto"): a first-order step is
+    cut short by every node near a kink, and a coarse solution starts the fine grid with
+    its kinks already settled, so the iteration count stays flat in N.
+    """
+
+    default_continuation: ClassVar[str] = "auto"
 
     @abstractmethod
     def min_norm(
