@@ -13,21 +13,30 @@ _RATIO = (math.sqrt(5.0) - 1.0) / 2.0
 
 @dataclass(frozen=True)
 class GoldenSection(LineSearch):
-    """Bounded golden-section search; if it finds no decrease, it searches again on
-    [0, γ̄·shrink], up to `retries` times, before reporting γ = 0."""
+    """Bounded golden-section search on [0, γ̄].
+
+    Golden section assumes one minimum on the interval. When I along G is not unimodal
+    and the bracket closes on a point no lower than I(ξ) (a decrease confined near 0
+    that the first probes stepped over), γ is halved from γ̄ until I decreases, up to
+    `halvings` times, and the search repeats on [0, 2γ]; γ = 0 if no decrease is found.
+    """
 
     name = "golden"
     rtol: float = 1e-6
-    shrink: float = 1e-3
-    retries: int = 4
+    halvings: int = 60
 
     def search(self, along: Callable[[float], float], value: float, slope: float, gamma_max: float) -> tuple[float, float]:
-        upper = gamma_max
-        for _ in range(self.retries + 1):
-            gamma, best = _golden(along, upper, self.rtol * upper)
-            if best < value:
-                return gamma, best
-            upper *= self.shrink
+        gamma, best = _golden(along, gamma_max, self.rtol * gamma_max)
+        if best < value:
+            return gamma, best
+        trial = gamma_max
+        for _ in range(self.halvings):
+            trial *= 0.5
+            lower = along(trial)
+            if lower < value:
+                upper = min(2.0 * trial, gamma_max)
+                gamma, best = _golden(along, upper, self.rtol * upper)
+                return (gamma, best) if best < lower else (trial, lower)
         return 0.0, value
 
 
