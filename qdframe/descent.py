@@ -104,11 +104,16 @@ def solve(
         functional = Functional(model, Grid(model.T, count))
         if result is not None:
             start = _interpolate(functional, result)
-        used = history[-1].iteration if history else 0
+        used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
+
+        def shift(record: IterationRecord, used: int = used, elapsed: float = elapsed) -> IterationRecord:
+            """A record counted over all grids so far."""
+            return dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
+
         stage = dataclasses.replace(options, max_iter=options.max_iter - used)
-        result = descend(functional, solver, search, stage, _shifted(progress, history), start)
-        elapsed = history[-1].time_s if history else 0.0
-        history += [dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed) for r in result.history]
+        shown = None if progress is None else (lambda record: progress(shift(record)))
+        result = descend(functional, solver, search, stage, shown, start)
+        history += [shift(record) for record in result.history]
         wall += result.wall_time_s
         if result.status == "failed":
             if count != nodes:
@@ -151,14 +156,6 @@ def grid_schedule(nodes: int, continuation: Sequence[int] | str) -> list[int]:
     if any(b <= a for a, b in zip(grids, grids[1:])):
         raise InputError("continuation", f"increasing node counts below nodes = {nodes}", tuple(continuation))
     return grids
-
-
-def _shifted(progress: ProgressCallback | None, history: list[IterationRecord]) -> ProgressCallback | None:
-    """`progress` fed with iteration numbers and times counted over all grids so far."""
-    if progress is None or not history:
-        return progress
-    used, elapsed = history[-1].iteration, history[-1].time_s
-    return lambda r: progress(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed))
 
 
 def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:

@@ -142,7 +142,8 @@ def test_defaults_are_gauss_newton_to_1e_10():
 
 def test_grid_continuation_refines_a_coarse_solution():
     direct = qdframe.solve("paper-7.1", nodes=201)
-    refined = qdframe.solve("paper-7.1", nodes=201, continuation=(11, 51))
+    shown = []
+    refined = qdframe.solve("paper-7.1", nodes=201, continuation=(11, 51), progress=shown.append)
     assert refined.status == "solved" and refined.nodes == 201 and len(refined.t) == 201
     assert refined.I <= 1e-10 and refined.boundary_error <= 1e-5
     assert refined.iterations == refined.history[-1].iteration >= 1
@@ -154,6 +155,9 @@ def test_grid_continuation_refines_a_coarse_solution():
     starts = [h for h, before in zip(refined.history[1:], refined.history) if h.nodes != before.nodes]
     assert [h.nodes for h in starts] == [51, 201] and all(h.step == 0.0 for h in starts)
     assert direct.status == "solved" and direct.options["grids"] == [201]
+    # progress sees every step once, numbered over all grids
+    assert [r.iteration for r in shown] == list(range(1, refined.iterations + 1))
+    assert [(r.iteration, r.nodes) for r in shown] == [(h.iteration, h.nodes) for h in refined.history if h.step > 0]
 
 
 @pytest.mark.parametrize(
