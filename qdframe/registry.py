@@ -1,7 +1,8 @@
 """Registries of models, direction solvers and line searches, fed by entry points.
 
 qdframe's own built-ins are declared in its pyproject under the same groups as any
-plugin's (`qdframe.models`, `qdframe.directions`, `qdframe.line_searches`). A plugin
+plugin's (`qdframe.models`, `qdframe.directions`, `qdframe.line_searches`,
+`qdframe.schemes`). A plugin
 that fails to load is a warning naming its distribution; two distributions claiming
 one name give a warning and a deterministic winner (qdframe itself first, then by
 distribution name); an unknown name is an error listing the available ones.
@@ -20,8 +21,9 @@ GROUPS = {
     "models": "qdframe.models",
     "directions": "qdframe.directions",
     "line_searches": "qdframe.line_searches",
+    "schemes": "qdframe.schemes",
 }
-KIND_LABEL = {"models": "model", "directions": "direction", "line_searches": "line search"}
+KIND_LABEL = {"models": "model", "directions": "direction", "line_searches": "line search", "schemes": "scheme"}
 
 
 class PluginWarning(UserWarning):
