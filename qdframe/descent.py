@@ -15,10 +15,12 @@ from .functional import Functional
 from .grid import Grid
 from .line_searches.base import LineSearch
 from .model import InclusionModel
+from .schemes import Scheme
 from .registry import lookup
 from .result import IterationRecord, SolveResult
 
 ProgressCallback = Callable[[IterationRecord], None]
+DEFAULT_SCHEME = "trapezoid"
 
 
 @dataclass(frozen=True)
@@ -30,11 +32,12 @@ class DescentOptions:
     delta: float = 1e-3
     eps: float = 1e-2
     gamma_max: float = 1.0
+    residual_tol: float = 1e-8  # pointwise, relative to max(1, max|x|): see :func:`pointwise_excess`
 
     def __post_init__(self) -> None:
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
             raise InputError("max_iter", "an integer ≥ 0", self.max_iter)
-        for field_name in ("tol", "delta", "eps", "gamma_max"):
+        for field_name in ("tol", "delta", "eps", "gamma_max", "residual_tol"):
             value = getattr(self, field_name)
             if not isinstance(value, (int, float, np.floating)) or not np.isfinite(value) or value <= 0:
                 raise InputError(field_name, "a positive finite number", value)
@@ -69,8 +72,12 @@ def solve(
     delta: float = 1e-3,
     eps: float = 1e-2,
     gamma_max: float = 1.0,
+    residual_tol: float = 1e-8,
     continuation: Sequence[int] | str | None = None,
     progress: ProgressCallback | None = None,
+    scheme: str | Scheme = DEFAULT_SCHEME,
+    signs: str = "exact",
+    selection_scale: float = 1.0,
 ) -> SolveResult:
     """Find a trajectory of `model` by quasidifferential descent.
 
@@ -86,6 +93,12 @@ def solve(
     the history and `iterations` cover all, each record naming its grid (`nodes`); each
     grid after the first adds a record of its interpolated start (same iteration number).
 
+    `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's;
+    "implicit-euler"; "radau-iia", where `nodes` counts mesh and stage points and is odd).
+    `signs` "exact" gives every sign term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied
+    to s by the natural map λ = clip(λ + c·s, −1, 1), c = `selection_scale`
+    (the result's `selections`); "band" uses each term's C¹ band instead.
+
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
     objective, `max_iter` when the budget is spent, `failed` when a backend or the
@@ -94,54 +107,75 @@ def solve(
     if isinstance(model, str):
         model = load_model(model)
     options = DescentOptions(
-        max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max
+        max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
+        residual_tol=residual_tol,
     )
     solver = make_direction(direction)
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
-    grids = grid_schedule(nodes, solver.default_continuation if continuation is None else continuation)
-    start, history, result, wall = None, [], None, 0.0
+    grids = grid_schedule(nodes, solver.default_continuation if continuation is None else continuation,
+                          solver.coarsest_nodes)
+    stages = []  # the functionals solved in turn: each grid, the first one also with the band if exact
     for count in grids:
-        functional = Functional(model, Grid(model.T, count))
-        if result is not None:
+        functional = Functional(model, Grid(model.T, count, scheme), signs=signs, selection_scale=selection_scale)
+        if not stages and functional.p:
+            stages.append(Functional(model, functional.grid, signs="band"))
+        stages.append(functional)
+    start, history, result, wall = None, [], None, 0.0
+    for functional in stages:
+        count = functional.grid.nodes
+        if result is not None:  # the previous stage's iterate, unless the model's start is better
             start = _interpolate(functional, result)
+            first = functional.initial_point()
+            if functional.objective(first) < functional.objective(start):
+                start = first
         used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
 
         def shift(record: IterationRecord, used: int = used, elapsed: float = elapsed) -> IterationRecord:
             """A record counted over all grids so far."""
             return dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
 
-        stage = dataclasses.replace(options, max_iter=options.max_iter - used)
+        budget = options.max_iter - used
+        if functional.signs != signs:  # the band only starts the exact solve: a short run
+            budget = min(budget, BAND_START_ITERATIONS)
+        stage = dataclasses.replace(options, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, solver, search, stage, shown, start)
         history += [shift(record) for record in result.history]
         wall += result.wall_time_s
         if result.status == "failed":
-            if count != nodes:
-                result.message = f"on the coarse grid of {count} nodes: {result.message}"
+            if functional is not stages[-1]:
+                result.message = f"on the grid of {count} nodes{' (band start)' if functional.signs != signs else ''}: {result.message}"
             break
+    first = functional.initial_point()  # the returned iterate is never worse than the model's start
+    if result.status != "failed" and functional.objective(first) < result.objective:
+        message = f"{result.message}; the model's start is better than the iterate reached: returned unchanged"
+        result = descend(functional, solver, search, dataclasses.replace(options, max_iter=0), None, first)
+        result.status, result.message = "stationary", message
     result.history = history
     result.iterations = history[-1].iteration
     result.wall_time_s = wall
-    result.options = {**result.options, "max_iter": options.max_iter, "grids": grids}
+    result.options = {**result.options, "max_iter": options.max_iter, "grids": grids,
+                      "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale}
     if result.status == "max_iter":
         result.message = f"{options.max_iter} iterations spent" + (f" over the grids {grids}" if len(grids) > 1 else "")
     return result
 
 
 COARSEST_NODES = 11  # step T/10, the paper's final step in Section 7
+BAND_START_ITERATIONS = 10  # at most this many iterations of the band start of an exact solve
 
 
-def grid_schedule(nodes: int, continuation: Sequence[int] | str) -> list[int]:
+def grid_schedule(nodes: int, continuation: Sequence[int] | str, coarsest: int = COARSEST_NODES) -> list[int]:
     """The grids a solve runs on, coarsest first, ending with `nodes`.
 
-    "auto": 11, 101, 1001, … (step T/10 refined tenfold) below `nodes`; "none" or ():
+    "auto": `coarsest` (11: step T/10), then refined tenfold (101, 1001, …) below `nodes`; "none" or ():
     `nodes` alone; a sequence: those node counts (increasing, below `nodes`), then `nodes`.
     Starting the paper's first-order descent from a coarse solution keeps its iteration
     count flat in N: on a fine grid alone the δ-active kinks of many nodes cut its steps.
     """
     if isinstance(continuation, str):
         if continuation == "auto":
-            coarse, ladder = [], COARSEST_NODES
+            coarse, ladder = [], coarsest
             while ladder < nodes:
                 coarse.append(ladder)
                 ladder = 10 * (ladder - 1) + 1
@@ -166,7 +200,8 @@ def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
         return np.stack([np.interp(t, previous.t, column) for column in values.T], axis=1)
 
     u = None if previous.u is None else on_grid(previous.u)
-    return functional.pack(on_grid(previous.x), on_grid(previous.z), u)
+    selections = None if previous.selections is None else on_grid(previous.selections)  # None: the band's
+    return functional.pack(on_grid(previous.x), on_grid(previous.z), u, selections)
 
 
 def descend(
@@ -189,8 +224,10 @@ def descend(
     try:
         for iteration in range(1, options.max_iter + 2):
             if terms.objective <= options.tol and terms.I <= options.tol:
-                status, message = "solved", ""
-                break
+                excess = pointwise_excess(functional, xi, options.residual_tol)
+                if not excess:
+                    status, message = "solved", ""
+                    break
             if iteration > options.max_iter:
                 break
             direction = solver.compute(functional, xi, options.delta)
@@ -231,6 +268,26 @@ def descend(
     return _result(functional, solver, search, options, xi, status, message, history, time.perf_counter() - clock)
 
 
+def pointwise_excess(functional: Functional, xi: np.ndarray, residual_tol: float) -> str:
+    """The pointwise checks a `solved` trajectory must pass, and those it fails (empty if none).
+
+    Every residual — the boundary error, max_k dist(z_k, F(y_k)) (with the selections),
+    max |λ − clip(λ + s, −1, 1)| (λ ∈ Sgn(s)), the consistency max |x − x0 − ∫z| and the
+    surface error — must be ≤ residual_tol·max(1, max|x|). A small I alone is not enough:
+    it weighs node k by w_k and so allows √(2I/w_k) there.
+    """
+    residuals = functional.residuals(xi)
+    bound = residual_tol * max(1.0, float(np.max(np.abs(functional.split(xi)[0]))))
+    checks = [
+        ("boundary error", residuals.boundary_error),
+        ("inclusion residual", residuals.inclusion_residual),
+        ("selection residual", residuals.selection_residual or 0.0),
+        ("consistency error", residuals.consistency_error),
+        ("surface error", residuals.surface_error or 0.0),
+    ]
+    return ", ".join(f"{name} {value:.2e} > {bound:.1e}" for name, value in checks if not value <= bound)
+
+
 def _residuals_disagree(functional: Functional, residuals, I: float) -> str:
     """What I ≤ tol implies for each residual, checked (empty when all agree).
 
@@ -244,6 +301,8 @@ def _residuals_disagree(functional: Functional, residuals, I: float) -> str:
         ("inclusion residual", residuals.inclusion_residual, pointwise),
         ("consistency error", residuals.consistency_error, pointwise),
         ("surface error", residuals.surface_error or 0.0, pointwise),
+        # σ's natural map with scale c bounds the one with c = 1: min(1, c)·|r_1| ≤ |r_c|
+        ("selection residual", residuals.selection_residual or 0.0, pointwise / min(1.0, functional.selection_scale)),
     ]
     return ", ".join(f"{name} {value:.2e} > {bound:.2e}" for name, value, bound in checks if value > bound)
 
@@ -256,6 +315,9 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         disagreement = _residuals_disagree(functional, residuals, terms.I)
         if disagreement:
             status, message = "failed", f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
+    elif terms.objective <= options.tol and terms.I <= options.tol:
+        excess = pointwise_excess(functional, xi, options.residual_tol)
+        message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {excess}"
     x, z = functional.split(xi)
     exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
@@ -275,17 +337,20 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         wall_time_s=elapsed,
         objective=terms.objective,
         I=terms.I,
-        terms={"phi": terms.phi, "chi": terms.chi, "omega": terms.omega, "upsilon": terms.upsilon},
+        terms={"phi": terms.phi, "chi": terms.chi, "omega": terms.omega, "upsilon": terms.upsilon, "sigma": terms.sigma},
         cost=terms.cost if functional.cost is not None else None,
         boundary_error=residuals.boundary_error,
         inclusion_residual=residuals.inclusion_residual,
         surface_error=residuals.surface_error,
         consistency_error=residuals.consistency_error,
+        selection_residual=residuals.selection_residual,
         solution_error=solution_error,
         t=functional.grid.t,
         x=x,
         z=z,
         u=functional.controls(xi) if functional.m else None,
+        selections=functional.selections(xi) if functional.p else None,
+        selection_names=[term.name for _, term in functional.sign_terms],
         state_names=tuple(model.state_names),
         set_bounds=bounds,
         options={
@@ -294,6 +359,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
             "delta": options.delta,
             "eps": options.eps,
             "gamma_max": options.gamma_max,
+            "residual_tol": options.residual_tol,
         },
         history=list(history),
     )

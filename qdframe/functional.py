@@ -1,15 +1,22 @@
 """The discretized functional I = φ + χ + ω + υ (+ cost) and its quasidifferential.
 
-Unknowns ξ are stored per node as one row [x (n) | z (n) | u (m)], ξ of shape
-(N, 2n + m), u the model's unknown controls (m = 0 without). The sets' pieces are
-functions of y = (x, u). The value x(t_0) = x0 is known, so it is not an unknown: it is
-fixed at node 0 and the quasidifferential is projected onto the remaining free unknowns.
+Unknowns ξ are stored per node as one row [x (n) | z (n) | u (m) | λ (p)], ξ of shape
+(N, 2n + m + p), u the model's unknown controls (m = 0 without) and λ the selections of
+its p sign terms a·Sgn(s) (p = 0 with ``signs="band"``). The sets' pieces are functions
+of y = (x, u). The value x(t_0) = x0 is known, so it is not an unknown: it is fixed at
+node 0 and the quasidifferential is projected onto the remaining free unknowns.
 
-Terms (paper (3.13), (3.14), (3.14'), (3.17)), with trapezoid weights w_k and the
-cumulative trapezoid Z = ∫_0^t z of :class:`~qdframe.grid.Grid`:
+Terms (paper (3.13), (3.14), (3.14'), (3.17)), with the scheme's weights w_k and
+cumulative integral Z = ∫_0^t z (:class:`~qdframe.grid.Grid`):
 
     φ = ½ Σ_k w_k Σ_b h_b(x_k, z_k)²      χ = ½ Σ_{j∈J} (x0_j + Z_{N−1,j} − xT_j)²
     ω = ½ Σ_k w_k ‖e(x_k)‖²               υ = ½ Σ_k w_k ‖x_k − x0 − Z_k‖²
+    σ = ½ Σ_k w_k Σ_i (λ_ik − clip(λ_ik + c·s_i(y_k), −1, 1))²
+
+σ is the natural map of the complementarity λ ∈ Sgn(s) (as in contact mechanics, Alart
+and Curnier): it is zero exactly when λ = sign s for s ≠ 0 and λ ∈ [−1, 1] for s = 0, so
+with σ = 0 the sign term a·Sgn(s) contributes the point a·λ of Filippov's set, and
+sticking and sliding come out of the equations, not out of a smoothing band.
 
 With a cost the objective is ∫cost + λ·I (Example 7.1), otherwise I.
 
@@ -24,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ModelOutputError
+from .errors import InputError, ModelOutputError
 from .grid import Grid
 from .model import InclusionModel, SetBlock
 from .psi import maximize_on_sphere
@@ -39,6 +46,7 @@ class Terms:
     chi: float
     omega: float
     upsilon: float
+    sigma: float  # the selections' natural-map term (0 without exact sign terms)
     cost: float
     I: float
     objective: float
@@ -52,14 +60,20 @@ class Residuals:
     inclusion_residual: float  # max_k max_b h_b(x_k, z_k)
     surface_error: float | None  # max_k ‖e(x_k)‖_∞
     consistency_error: float  # max_k |x_k − x0 − Z_k|
+    selection_residual: float | None  # max |λ − clip(λ + s, −1, 1)|: λ ∈ Sgn(s) to this (None: no selections)
 
 
 @dataclass(frozen=True)
 class DistanceSides:
-    """A block's sides: tuples (ℓ (N,), ∂ℓ/∂y (N, n + m), ∂ℓ/∂z_b = ψ (N, k)); h_b = max(0, max ℓ)."""
+    """A block's sides: tuples (ℓ (N,), ∂ℓ/∂y (N, n + m + p), ∂ℓ/∂z_b = ψ (N, k)); h_b = max(0, max ℓ).
+
+    `equation`: F_b(y) is a single point (one-piece max-groups, sign terms with
+    selections): then the ψ = +1 side alone is the signed residual z_b − f_b(y), h = |ℓ|.
+    """
 
     coords: tuple[int, ...]
     sides: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+    equation: bool = False
 
     @property
     def h(self) -> np.ndarray:
@@ -76,13 +90,12 @@ class _Piece:
 
 @dataclass
 class _SignPart:
-    """A sign term at ψ: κ_ψ(s), dκ/ds, the amplitude a and its groups, ∇s."""
+    """A sign term at ψ: κ = c(Sgn, ψ) (ψλ with a selection), its gradient, the amplitude a."""
 
     kappa: np.ndarray  # (N,)
-    slope: np.ndarray  # (N,) dκ_ψ/ds
+    kappa_grad: np.ndarray  # (N, n + m + p): dκ/dy (the band's slope·∇s, or ψ on λ's column)
     amplitude: np.ndarray  # (N,) a(y)
     groups: list[_Piece]  # a = Σ_i max_q a_iq
-    switch_grad: np.ndarray  # (N, n + m)
 
 
 @dataclass
@@ -100,17 +113,18 @@ class _Side:
         return np.maximum(0.0, self.ell)
 
     def gradient(self, width: int) -> np.ndarray:
-        """∂ℓ/∂y (N, width) from the active piece of every group (a generalized-Jacobian element)."""
+        """∂ℓ/∂y (N, width) from the active piece of every group (a generalized-Jacobian
+        element); y = (x, u, λ), the pieces' gradients fill the first n + m columns."""
         rows = np.arange(self.ell.size)
         grad = np.zeros((self.ell.size, width))
         for part in self.max_parts:
-            grad -= part.grads[rows, np.argmax(part.values, axis=1)]
+            grad[:, : part.grads.shape[-1]] -= part.grads[rows, np.argmax(part.values, axis=1)]
         for part in self.min_parts:
-            grad -= part.grads[rows, np.argmin(part.values, axis=1)]
+            grad[:, : part.grads.shape[-1]] -= part.grads[rows, np.argmin(part.values, axis=1)]
         for sign in self.sign_parts:
-            grad -= sign.amplitude[:, None] * sign.slope[:, None] * sign.switch_grad
+            grad -= sign.amplitude[:, None] * sign.kappa_grad
             for piece in sign.groups:
-                grad -= sign.kappa[:, None] * piece.grads[rows, np.argmax(piece.values, axis=1)]
+                grad[:, : piece.grads.shape[-1]] -= sign.kappa[:, None] * piece.grads[rows, np.argmax(piece.values, axis=1)]
         return grad
 
     @staticmethod
@@ -127,23 +141,48 @@ class _Side:
             [_Piece(pick(p.values, q.values), pick(p.grads, q.grads)) for p, q in zip(a.max_parts, b.max_parts)],
             [_Piece(pick(p.values, q.values), pick(p.grads, q.grads)) for p, q in zip(a.min_parts, b.min_parts)],
             [
-                _SignPart(pick(p.kappa, q.kappa), pick(p.slope, q.slope), p.amplitude, p.groups, p.switch_grad)
+                _SignPart(pick(p.kappa, q.kappa), pick(p.kappa_grad, q.kappa_grad), p.amplitude, p.groups)
                 for p, q in zip(a.sign_parts, b.sign_parts)
             ],
         )
 
 
+SIGN_MODES = ("exact", "band")
+
+
 class Functional:
     """The discretized objective of a model on a grid."""
 
-    def __init__(self, model: InclusionModel, grid: Grid, psi_samples: int = 128) -> None:
+    def __init__(
+        self,
+        model: InclusionModel,
+        grid: Grid,
+        psi_samples: int = 128,
+        signs: str = "exact",
+        selection_scale: float = 1.0,
+    ) -> None:
+        """`signs`: "exact" (a selection λ ∈ Sgn(s) per sign term and node, tied by σ) or
+        "band" (the C¹ band of :class:`~qdframe.model.SignTerm`, no selections);
+        `selection_scale` is c in σ's natural map."""
+        if signs not in SIGN_MODES:
+            raise InputError("signs", " or ".join(f'"{mode}"' for mode in SIGN_MODES), signs)
+        if not (isinstance(selection_scale, (int, float)) and np.isfinite(selection_scale) and selection_scale > 0):
+            raise InputError("selection_scale", "a positive finite number", selection_scale)
         self.model = model
         self.grid = grid
+        self.signs = signs
+        self.selection_scale = float(selection_scale)
         self.n = model.n_states
         self.m = model.n_controls
-        self.dim = 2 * self.n + self.m
-        self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
         self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
+        # the sign terms with a selection column each, in block order: (block index, term)
+        self.sign_terms = [] if signs == "band" else [
+            (b, term) for b, block in enumerate(self.blocks) for term in block.signs
+        ]
+        self.p = len(self.sign_terms)
+        self.dim = 2 * self.n + self.m + self.p
+        self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
+        self.width = self.args + self.p  # width of the sides' gradients: (x, u, λ)
         self.surface = model.surface()
         self.cost = model.cost()
         self.penalty = float(self.cost.weight) if self.cost is not None else 1.0
@@ -171,18 +210,32 @@ class Functional:
 
     def controls(self, xi: np.ndarray) -> np.ndarray:
         """u, shape (N, m)."""
-        return xi[:, 2 * self.n :]
+        return xi[:, 2 * self.n : 2 * self.n + self.m]
+
+    def selections(self, xi: np.ndarray) -> np.ndarray:
+        """λ, shape (N, p): the selection of each sign term's Sgn(s) at every node."""
+        return xi[:, 2 * self.n + self.m :]
 
     def arguments(self, xi: np.ndarray) -> np.ndarray:
         """y = (x, u), the pieces' argument, shape (N, n + m)."""
-        return xi[:, : self.n] if self.m == 0 else np.concatenate([xi[:, : self.n], xi[:, 2 * self.n :]], axis=1)
+        return xi[:, : self.n] if self.m == 0 else np.concatenate([xi[:, : self.n], self.controls(xi)], axis=1)
 
-    def pack(self, x: np.ndarray, z: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        parts = [x, z] + ([] if self.m == 0 else [np.zeros((x.shape[0], self.m)) if u is None else u])
+    def pack(self, x: np.ndarray, z: np.ndarray, u: np.ndarray | None = None,
+             selections: np.ndarray | None = None) -> np.ndarray:
+        """ξ from its parts; selections default to the band's, clip(s(y)/β, −1, 1) per term."""
+        nodes = x.shape[0]
+        parts = [x, z, np.zeros((nodes, self.m)) if u is None else u, np.zeros((nodes, self.p))]
         xi = np.concatenate(parts, axis=1).astype(float)
         xi[0, : self.n] = self.model.x0
         for i, j in self.resolved.items():
             xi[:, self.n + i] = xi[:, j]
+        if self.p:
+            if selections is None:
+                y = self.arguments(xi)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    selections = np.stack([np.nan_to_num(np.clip(self._switch(self.blocks[b], term, y)[0] / term.band,
+                                                                 -1.0, 1.0)) for b, term in self.sign_terms], axis=1)
+            xi[:, 2 * self.n + self.m :] = selections
         return xi
 
     def initial_point(self) -> np.ndarray:
@@ -198,11 +251,11 @@ class Functional:
 
     # ---------------------------------------------------------------- values
     def terms(self, xi: np.ndarray) -> Terms:
-        """φ, χ, ω, υ, the cost, I and the objective at ξ."""
+        """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
         x, z = self.split(xi)
         y = self.arguments(xi)
         w = self.weights
-        h2 = sum(state.h**2 for state in self._block_states(y, z))
+        h2 = sum(state.h**2 for state in self._block_states(y, z, self.selections(xi)))
         phi = 0.5 * float(w @ h2)
         chi = 0.5 * float(np.sum(self._end_residual(z) ** 2))
         omega = 0.0
@@ -210,10 +263,11 @@ class Functional:
             e, _ = self._surface(x)
             omega = 0.5 * float(w @ np.sum(e**2, axis=1))
         upsilon = 0.5 * float(w @ np.sum(self._consistency(x, z) ** 2, axis=1))
-        total = phi + chi + omega + upsilon
+        sigma = 0.5 * float(w @ np.sum(self.selection_residual(xi)[0] ** 2, axis=1)) if self.p else 0.0
+        total = phi + chi + omega + upsilon + sigma
         cost = float(w @ self._cost_integrand(y)) if self.cost is not None else 0.0
         objective = cost + self.penalty * total if self.cost is not None else total
-        return Terms(phi, chi, omega, upsilon, cost, total, objective)
+        return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective)
 
     def objective(self, xi: np.ndarray) -> float:
         return self.terms(xi).objective
@@ -225,7 +279,7 @@ class Functional:
 
     def residuals(self, xi: np.ndarray) -> Residuals:
         x, z = self.split(xi)
-        h = np.max([np.max(state.h) for state in self._block_states(self.arguments(xi), z)])
+        h = np.max([np.max(state.h) for state in self._block_states(self.arguments(xi), z, self.selections(xi))])
         surface_error = None
         if self.surface is not None:
             surface_error = float(np.max(np.abs(self._surface(x)[0])))
@@ -234,18 +288,37 @@ class Functional:
             inclusion_residual=float(h),
             surface_error=surface_error,
             consistency_error=float(np.max(np.abs(self._consistency(x, z)))),
+            selection_residual=float(np.max(np.abs(self.selection_residual(xi, scale=1.0)[0]))) if self.p else None,
         )
+
+    def selection_residual(self, xi: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The natural map r = λ − clip(λ + c·s(y), −1, 1) of every sign term, (N, p), and one
+        element of its generalized Jacobian in y = (x, u, λ), (N, p, n + m + p). r = 0 exactly
+        when λ ∈ Sgn(s). `scale` is c (default: the functional's `selection_scale`)."""
+        c = self.selection_scale if scale is None else scale
+        y, lam = self.arguments(xi), self.selections(xi)
+        nodes = y.shape[0]
+        residual = np.empty((nodes, self.p))
+        jacobian = np.zeros((nodes, self.p, self.width))
+        for k, (b, term) in enumerate(self.sign_terms):
+            s, ds = self._switch(self.blocks[b], term, y)
+            moved = lam[:, k] + c * s
+            inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
+            residual[:, k] = lam[:, k] - np.clip(moved, -1.0, 1.0)
+            jacobian[:, k, : self.args] = -c * inside[:, None] * ds
+            jacobian[:, k, self.args + k] = 1.0 - inside
+        return residual, jacobian
 
     def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
         """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
-        y = self.arguments(xi)
+        y, lam = self.arguments(xi), self.selections(xi)
         bounds: list[tuple[np.ndarray, np.ndarray] | None] = []
-        for block in self.blocks:
+        for b, block in enumerate(self.blocks):
             if block.size != 1:
                 bounds.append(None)
                 continue
             zero = np.zeros((y.shape[0], self.n))
-            plus, minus = self._sides_1d(block, y, zero)  # ℓ(ψ) = −c(F, ψ) at z = 0
+            plus, minus = self._sides_1d(block, y, zero, self._block_selections(b, lam))  # ℓ(ψ) = −c(F, ψ) at z = 0
             bounds.append((minus.ell, -plus.ell))
         return bounds
 
@@ -268,9 +341,13 @@ class Functional:
         if self.surface is not None:
             e, de = self._surface(x)
             smooth[:, :n] += np.einsum("ko,kon->kn", e, de)
+        # σ: the natural map's residual times an element of its generalized Jacobian
+        if self.p:
+            r, dr = self.selection_residual(xi)
+            smooth += self._embed(np.einsum("ki,kid->kd", r, dr))
         sub_groups: list[tuple[np.ndarray, np.ndarray]] = []
         sup_groups: list[tuple[np.ndarray, np.ndarray]] = []
-        for block, side in zip(self.blocks, self._block_states(y, z)):
+        for block, side in zip(self.blocks, self._block_states(y, z, self.selections(xi))):
             h = side.h
             positive = h > 0
             smooth[:, n + np.asarray(block.coords)] += h[:, None] * side.psi  # h ψ* e_z
@@ -281,7 +358,7 @@ class Functional:
                 mask = _delta_active(part.values, delta, positive)
                 sup_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
             for sign in side.sign_parts:  # −κ·a(y) − smooth in s: by the sign of κ
-                smooth -= self._embed(h[:, None] * sign.amplitude[:, None] * sign.slope[:, None] * sign.switch_grad)
+                smooth -= self._embed(h[:, None] * sign.amplitude[:, None] * sign.kappa_grad)
                 for piece in sign.groups:
                     mask = _delta_active(piece.values, delta, positive)
                     scale = (h * sign.kappa)[:, None, None]
@@ -311,11 +388,15 @@ class Functional:
         one element of its generalized Jacobian (:meth:`_Side.gradient`). One-coordinate
         blocks have two sides, ψ = +1 and ψ = −1 (the interval's ends); S_k blocks have
         one, ψ = ψ*."""
-        y, z = self.arguments(xi), self.split(xi)[1]
+        y, z, lam = self.arguments(xi), self.split(xi)[1], self.selections(xi)
         out = []
-        for block in self.blocks:
-            sides = self._sides_1d(block, y, z) if block.size == 1 else [self._state_sphere(block, y, z)]
-            out.append(DistanceSides(block.coords, [(side.ell, side.gradient(self.args), side.psi) for side in sides]))
+        for b, block in enumerate(self.blocks):
+            sides = (self._sides_1d(block, y, z, self._block_selections(b, lam)) if block.size == 1
+                     else [self._state_sphere(block, y, z)])
+            point = (block.size == 1 and not sides[0].min_parts and (self.p or not block.signs)
+                     and all(part.values.shape[1] == 1 for part in sides[0].max_parts))
+            out.append(DistanceSides(block.coords, [(side.ell, side.gradient(self.width), side.psi)
+                                                    for side in sides[: 1 if point else None]], point))
         return out
 
     def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
@@ -348,10 +429,10 @@ class Functional:
         return x - self.model.x0 - self.grid.cumulative(z)
 
     def _embed(self, grads: np.ndarray) -> np.ndarray:
-        """Gradients in y = (x, u) (…, n + m) placed in the x- and u-slots of ξ's row (…, 2n + m)."""
+        """Gradients in y = (x, u) or (x, u, λ) placed in the x-, u- (and λ-) slots of ξ's row."""
         out = np.zeros(grads.shape[:-1] + (self.dim,))
         out[..., : self.n] = grads[..., : self.n]
-        out[..., 2 * self.n :] = grads[..., self.n :]
+        out[..., 2 * self.n : self.n + grads.shape[-1]] = grads[..., self.n :]
         return out
 
     def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -397,22 +478,32 @@ class Functional:
         self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
         return g, grad
 
-    def _block_states(self, y: np.ndarray, z: np.ndarray) -> list[_Side]:
+    def _block_states(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[_Side]:
         """Every block at its ψ*."""
         return [
-            self._state_1d(block, y, z) if block.size == 1 else self._state_sphere(block, y, z)
-            for block in self.blocks
+            self._state_1d(block, y, z, self._block_selections(b, lam)) if block.size == 1
+            else self._state_sphere(block, y, z)
+            for b, block in enumerate(self.blocks)
         ]
 
+    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray] | None]:
+        """For each sign term of block b: (its column in y = (x, u, λ), its λ), or None (band)."""
+        if not self.p:
+            return [None] * len(self.blocks[b].signs)
+        columns = [k for k, (block, _) in enumerate(self.sign_terms) if block == b]
+        return [(self.args + k, lam[:, k]) for k in columns]
+
     def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,
-              maxes: list[tuple[np.ndarray, np.ndarray]] | None = None) -> _Side:
+              maxes: list[tuple[np.ndarray, np.ndarray]] | None = None,
+              selections: list | None = None) -> _Side:
         """All groups of `block` at ψ (N, k); `maxes` reuses evaluated max-groups."""
         if maxes is None:
             maxes = [self._max_group(block, group, y) for group in block.max_groups]
         ell = np.einsum("nk,nk->n", z[:, list(block.coords)], psi)
         max_parts = [_Piece(np.einsum("nqk,nk->nq", f, psi), np.einsum("nqkd,nk->nqd", jac, psi)) for f, jac in maxes]
         min_parts = [_Piece(*self._min_group(block, group, y, psi)) for group in block.min_groups]
-        sign_parts = [self._sign_part(block, term, y, psi[:, 0]) for term in block.signs]
+        selections = selections or [None] * len(block.signs)
+        sign_parts = [self._sign_part(block, term, y, psi[:, 0], sel) for term, sel in zip(block.signs, selections)]
         for part in max_parts:
             ell -= part.values.max(axis=1)
         for part in min_parts:
@@ -421,38 +512,50 @@ class Functional:
             ell -= part.kappa * part.amplitude
         return _Side(psi, ell, max_parts, min_parts, sign_parts)
 
-    def _sign_part(self, block: SetBlock, term, y: np.ndarray, psi: np.ndarray) -> _SignPart:
-        """κ_ψ(s)·a(y) of a sign term, ψ = ±1 per node (model.SignTerm)."""
+    def _switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked."""
         label = f"block {block.name or block.coords} sign term {term.name!r}"
         s, ds = term.switch(y)
         self._check(f"{label} switch", s, (y.shape[0],))
         self._check(f"{label} switch gradient", ds, (y.shape[0], self.args))
+        return s, ds
+
+    def _sign_part(self, block: SetBlock, term, y: np.ndarray, psi: np.ndarray,
+                   selection: tuple[int, np.ndarray] | None = None) -> _SignPart:
+        """c(a(y)·Sgn(s), ψ) = a(y)·κ of a sign term, ψ = ±1 per node (model.SignTerm):
+        κ = ψλ with a selection (column, λ), else the band's κ_ψ(s)."""
+        label = f"block {block.name or block.coords} sign term {term.name!r}"
         if isinstance(term.amplitude, (int, float)):
             groups: list[_Piece] = []
             amplitude = np.full(y.shape[0], float(term.amplitude))
         else:
             groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
             amplitude = sum(piece.values.max(axis=1) for piece in groups)
+        kappa_grad = np.zeros((y.shape[0], self.width))
+        if selection is not None:  # the point a·λ of Filippov's set: c = a·ψλ
+            column, lam = selection
+            kappa_grad[:, column] = psi
+            return _SignPart(psi * lam, kappa_grad, amplitude, groups)
+        s, ds = self._switch(block, term, y)
         if np.isinf(term.band):  # the whole interval everywhere (a term on its own surface)
-            kappa, slope = np.ones_like(s), np.zeros_like(s)
+            kappa = np.ones_like(s)
         elif term.band > 0:  # κ = 1 − 2·S(u), u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³ (C¹)
             u = np.clip(-psi * s / term.band, 0.0, 1.0)
             kappa = 1.0 - 2.0 * u * u * (3.0 - 2.0 * u)
-            slope = 12.0 * u * (1.0 - u) * psi / term.band
+            kappa_grad[:, : self.args] = (12.0 * u * (1.0 - u) * psi / term.band)[:, None] * ds
         else:  # exact Filippov sign: the whole interval only at s = 0
             kappa = np.where(psi * s >= 0, 1.0, -1.0)
-            slope = np.zeros_like(s)
-        return _SignPart(kappa, slope, amplitude, groups, ds)
+        return _SignPart(kappa, kappa_grad, amplitude, groups)
 
-    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> list[_Side]:
+    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> list[_Side]:
         """A one-coordinate block at ψ = +1 and ψ = −1."""
         maxes = [self._max_group(block, group, y) for group in block.max_groups]
         ones = np.ones((y.shape[0], 1))
-        return [self._side(block, y, z, ones, maxes), self._side(block, y, z, -ones, maxes)]
+        return [self._side(block, y, z, ones, maxes, selections), self._side(block, y, z, -ones, maxes, selections)]
 
-    def _state_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:
+    def _state_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> _Side:
         """ψ ∈ {−1, +1}: ψ* in closed form (the nearer violated end of the interval)."""
-        plus, minus = self._sides_1d(block, y, z)
+        plus, minus = self._sides_1d(block, y, z, selections)
         return _Side.choose(plus.ell >= minus.ell, plus, minus)
 
     def _state_sphere(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:

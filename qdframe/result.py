@@ -48,11 +48,14 @@ class SolveResult:
     inclusion_residual: float
     surface_error: float | None
     consistency_error: float
+    selection_residual: float | None  # max |λ − clip(λ + s, −1, 1)|: how far λ is from Sgn(s) (None: no selections)
     solution_error: float | None
     t: np.ndarray
     x: np.ndarray
     z: np.ndarray
     u: np.ndarray | None
+    selections: np.ndarray | None  # (N, p) λ of each sign term a·Sgn(s), or None
+    selection_names: list[str]
     state_names: tuple[str, ...]
     set_bounds: list[Any]
     options: dict[str, Any]
@@ -84,11 +87,13 @@ class SolveResult:
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),
-            ("I = φ+χ+ω+υ", f"{self.I:.3e}  (" + ", ".join(f"{k} {v:.1e}" for k, v in self.terms.items()) + ")"),
+            ("I = φ+χ+ω+υ+σ", f"{self.I:.3e}  (" + ", ".join(f"{k} {v:.1e}" for k, v in self.terms.items()) + ")"),
             ("boundary error", f"{self.boundary_error:.3e}"),
             ("inclusion residual", f"{self.inclusion_residual:.3e}"),
             ("consistency error", f"{self.consistency_error:.3e}"),
         ]
+        if self.selection_residual is not None:
+            rows.append(("selection residual", f"{self.selection_residual:.3e}"))
         if self.cost is not None:
             rows.insert(7, ("cost", f"{self.cost:.3e}"))
         if self.surface_error is not None:

@@ -114,7 +114,7 @@ class _Evaluator:
     """The interval [lo_i(x), hi_i(x)] of every coordinate and their x-gradients."""
 
     def __init__(self, model: InclusionModel, band: float) -> None:
-        self.functional = Functional(model, Grid(1.0, 2))
+        self.functional = Functional(model, Grid(1.0, 2), signs="band")
         self.functional.blocks = tuple(
             dataclasses.replace(block, signs=tuple(dataclasses.replace(s, band=band) for s in block.signs))
             for block in self.functional.blocks

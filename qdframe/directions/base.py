@@ -47,6 +47,7 @@ class DirectionSolver(ABC):
     name: ClassVar[str] = ""
     default_line_search: ClassVar[str] = "golden"  # used when the caller names none
     default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (descent.grid_schedule)
+    coarsest_nodes: ClassVar[int] = 11  # the first grid of "auto"
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional`: reset any state kept between iterations."""

@@ -5,9 +5,15 @@ from the active pieces (:meth:`Functional.distance_sides`):
 
     φ: √w_k · h_b(y_k, z_k)        υ: √w_k · (x_k − x0 − Z_k)
     χ: x0_j + Z_{N−1,j} − xT_j      ω: √w_k · e(x_k)
+    σ: √w_k · (λ_k − clip(λ_k + c·s(y_k), −1, 1))   (the sign terms' selections)
+
+σ's natural map is semismooth: its Jacobian element is that of the active branch of
+the clip, so with the selections the step is a semismooth Newton step (LM-damped; with
+μ → μ_min it is the exact Newton step where the system is square).
 
 The cumulative integral Z = ∫_0^t z stays sparse: Z is an extra unknown per node tied
-to z by the trapezoid recursion Z_k = Z_{k−1} + h/2·(z_{k−1} + z_k), a banded equality
+to z by the scheme's rule Z_p = Z_{base(p)} + Σ_j A_pj z_j (the trapezoid rule,
+implicit Euler or Radau IIA: :class:`~qdframe.grid.Grid`), a banded equality
 constraint, and x(t_0) = x0, Z_0 = 0 are constraints too. The step d minimizes
 
     λ/2·‖r + J d‖² + [cost model] + μ/2·Σ_k w_k ‖d_k‖²   subject to  E d = 0,
@@ -54,7 +60,11 @@ class GaussNewton(DirectionSolver):
 
     name = "gauss-newton"
     default_line_search = "armijo"  # a Newton-type step: try γ = 1 first
-    mu: float = 1e-3
+    # a grid ladder 101, 1001, … below N: semismooth Newton then finds each switch from the
+    # coarser grid's, a few nodes off, instead of from the model's start
+    default_continuation = "auto"
+    coarsest_nodes = 101
+    mu: float = 1e-10
     mu_min: float = 1e-12
     mu_max: float = 1e8
     _state: dict = field(default_factory=dict, repr=False)
@@ -97,15 +107,17 @@ class _System:
 
     def __init__(self, functional: "Functional", xi: np.ndarray, delta: float) -> None:
         self.f = functional
-        n, m = functional.n, functional.m
+        n, m = functional.n, functional.m + functional.p  # u and the selections λ: both enter y
         nodes = functional.grid.nodes
         self.n, self.m, self.nodes = n, m, nodes
-        self.width = 3 * n + m  # per node: x, z, u, Z
+        self.width = 3 * n + m  # per node: x, z, u, λ, Z
         self.size = nodes * self.width
         self.delta = delta
         self.penalty = functional.penalty
         self.value = functional.objective(xi)
-        self.sides = functional.distance_sides(xi)
+        blocks = functional.distance_sides(xi)
+        self.equations = [block for block in blocks if block.equation]  # z_b = f_b(y): least squares
+        self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
         self.residual, self.jacobian = self._least_squares(xi)
         self.constraints = self._constraints()
         self.cost = functional.cost_pieces(xi) if functional.cost is not None else None
@@ -160,6 +172,16 @@ class _System:
             add((root_w[:, None] * e).ravel(),
                 np.repeat(x_cols[:, None, :], o, axis=1).reshape(nodes * o, self.n),
                 (root_w[:, None, None] * de).reshape(nodes * o, self.n))
+        y_cols, z_cols = self.y_cols(), self.z_cols()
+        for block in self.equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
+            (ell, dell_dy, psi), = block.sides
+            add(root_w * ell, np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
+                root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
+        if f.p:  # σ: the selections' natural map
+            r, dr = f.selection_residual(xi)
+            add((root_w[:, None] * r).ravel(),
+                np.repeat(y_cols[:, None, :], f.p, axis=1).reshape(nodes * f.p, -1),
+                (root_w[:, None, None] * dr).reshape(nodes * f.p, -1))
         jacobian = sp.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, self.size)
         )
@@ -167,8 +189,8 @@ class _System:
 
     def _constraints(self) -> sp.csr_matrix:
         """E d = 0: dx_0 = 0, dZ_0 = 0, dz_i = dx_j for resolved states,
-        dZ_k − dZ_{k−1} − h/2·(dz_k + dz_{k−1}) = 0."""
-        n, h = self.n, self.f.grid.step
+        dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j = 0 (the scheme's rule)."""
+        n = self.n
         x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
         fixed = np.concatenate([x_cols[0], Z_cols[0]])
         rows = [np.arange(2 * n)]
@@ -181,11 +203,16 @@ class _System:
             cols += [z_cols[:, i], x_cols[:, j]]
             vals += [np.ones(self.nodes), -np.ones(self.nodes)]
             count += self.nodes
-        recursion = count + np.arange((self.nodes - 1) * n)
-        for col, val in ((Z_cols[1:], 1.0), (Z_cols[:-1], -1.0), (z_cols[1:], -h / 2), (z_cols[:-1], -h / 2)):
-            rows.append(recursion)
+        points, base, increments = self.f.grid.recursion()
+        recursion = count + np.arange(points.size * n).reshape(points.size, n)  # one row per point p ≥ 1 and state
+        for col, val in ((Z_cols[points], 1.0), (Z_cols[base], -1.0)):
+            rows.append(recursion.ravel())
             cols.append(col.ravel())
             vals.append(np.full(recursion.size, val))
+        coo = increments.tocoo()  # −A_pj dz_j, row p − 1 of the restricted A
+        rows.append(recursion[coo.row].ravel())
+        cols.append(z_cols[coo.col].ravel())
+        vals.append(np.repeat(-coo.data, n))
         return sp.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
             shape=(count + recursion.size, self.size),
@@ -213,6 +240,8 @@ class _System:
                 vals.append(coefficients.ravel())
                 values.append(root_w * ell)
                 count += self.nodes
+        if not count:
+            return sp.csr_matrix((0, self.size)), np.zeros(0)
         matrix = sp.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, self.size)
         )
@@ -315,10 +344,13 @@ class _System:
         settings.verbose = False
         for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
             setattr(settings, name, 1e-12)
+        scale = 1.0 / max(self.value, 1e-8)  # the QP objective near O(1): Clarabel's gap tolerances are absolute
         solution = clarabel.DefaultSolver(
-            sp.triu(P, format="csc"), q, A, b_vec,
+            sp.triu(scale * P, format="csc"), scale * q, A, b_vec,
             [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(count)], settings,
         ).solve()
+        if str(solution.status) == "InsufficientProgress":  # at Clarabel's precision: no further step
+            return np.zeros(self.size), 0.0, 0.0
         if str(solution.status) not in ("Solved", "AlmostSolved"):
             raise BackendError(f"direction 'gauss-newton': the step QP (Clarabel) ended with status {solution.status}")
         v = np.asarray(solution.x)
