@@ -20,7 +20,6 @@ from .registry import lookup
 from .result import IterationRecord, SolveResult
 
 ProgressCallback = Callable[[IterationRecord], None]
-DEFAULT_SCHEME = "trapezoid"
 
 
 @dataclass(frozen=True)
@@ -75,7 +74,7 @@ def solve(
     residual_tol: float = 1e-8,
     continuation: Sequence[int] | str | None = None,
     progress: ProgressCallback | None = None,
-    scheme: str | Scheme = DEFAULT_SCHEME,
+    scheme: str | Scheme | None = None,
     signs: str = "exact",
     selection_scale: float = 1.0,
 ) -> SolveResult:
@@ -94,7 +93,8 @@ def solve(
     grid after the first adds a record of its interpolated start (same iteration number).
 
     `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's;
-    "implicit-euler"; "radau-iia", where `nodes` counts mesh and stage points and is odd).
+    "implicit-euler"; "radau-iia", where `nodes` counts mesh and stage points and is odd);
+    None is the model's `default_scheme` (implicit Euler unless the model says otherwise).
     `signs` "exact" gives every sign term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied
     to s by the natural map λ = clip(λ + c·s, −1, 1), c = `selection_scale`
     (the result's `selections`); "band" uses each term's C¹ band instead.
@@ -106,6 +106,7 @@ def solve(
     """
     if isinstance(model, str):
         model = load_model(model)
+    scheme = model.default_scheme if scheme is None else scheme
     options = DescentOptions(
         max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
         residual_tol=residual_tol,

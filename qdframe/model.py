@@ -172,6 +172,10 @@ class InclusionModel(ABC):
     end_indices: ClassVar[tuple[int, ...]] = ()  # J, zero-based
     default_end_values: ClassVar[tuple[float, ...]] = ()
     default_tol: ClassVar[float] = 1e-10
+    # the scheme a solve uses unless told (qdframe.schemes): implicit Euler, first order and
+    # robust for sticking, sliding and switching; smooth models may prefer "radau-iia" or
+    # "trapezoid" (the paper's, second order)
+    default_scheme: ClassVar[str] = "implicit-euler"
 
     def __init__(
         self,

@@ -111,12 +111,18 @@ def test_directional_derivative_with_controls_signs_and_surface(seed):
 
 
 def test_set_bounds_of_a_sign_term_contain_filippovs_set():
-    """Far from s = 0 the set is a·sign(s) exactly; at s = 0 it is the whole a·[−1, 1]."""
+    """With the band: far from s = 0 the set is a·sign(s) exactly; at s = 0 the whole a·[−1, 1].
+    With selections the set is the point a·λ, and the default λ is the band's."""
     model = Sliding()
-    functional = Functional(model, Grid(1.0, 3))
-    xi = functional.pack(np.array([[0.7], [0.0], [-0.5]]), np.zeros((3, 1)), np.zeros((3, 1)))
-    lower, upper = functional.set_bounds(xi)[0]
+    band = Functional(model, Grid(1.0, 3), signs="band")
+    xi = band.pack(np.array([[0.7], [0.0], [-0.5]]), np.zeros((3, 1)), np.zeros((3, 1)))
+    lower, upper = band.set_bounds(xi)[0]
     assert np.allclose(lower, [-1.0, -1.0, 1.0]) and np.allclose(upper, [-1.0, 1.0, 1.0])
+    exact = Functional(model, Grid(1.0, 3))
+    xi = exact.pack(np.array([[0.7], [0.0], [-0.5]]), np.zeros((3, 1)), np.zeros((3, 1)), np.array([[-1.0], [0.25], [1.0]]))
+    lower, upper = exact.set_bounds(xi)[0]
+    assert np.allclose(lower, [-1.0, 0.25, 1.0]) and np.allclose(upper, lower)
+    assert np.allclose(exact.pack(xi[:, :1], xi[:, 1:2], xi[:, 2:3])[:, 3], [-1.0, 0.0, 1.0])
 
 
 def test_paper_73_starts_where_the_reaching_phase_ends():
@@ -124,10 +130,14 @@ def test_paper_73_starts_where_the_reaching_phase_ends():
     assert np.allclose(x0, [-1.0525, 1.0995, -0.7873, 0.0, 0.0264, 1.1196], atol=1e-3)
 
 
-@pytest.mark.parametrize("nodes", [11, 101])
-def test_paper_73_with_gauss_newton(nodes):
-    result = qdframe.solve("paper-7.3", nodes=nodes, direction="gauss-newton", tol=1e-10, max_iter=10)
+@pytest.mark.parametrize("nodes, scheme, signs", [(101, None, "exact"), (11, "trapezoid", "band"), (101, "trapezoid", "band")])
+def test_paper_73_with_gauss_newton(nodes, scheme, signs):
+    """Exact selections on implicit Euler (the default), and the paper's trapezoid rule with the band."""
+    result = qdframe.solve("paper-7.3", nodes=nodes, direction="gauss-newton", tol=1e-10, scheme=scheme, signs=signs)
     assert result.status == "solved" and result.I <= 1e-10
+    if signs == "exact":
+        assert result.selections.shape == (nodes, 3) and result.selection_residual <= 1e-8
+        assert np.all(np.abs(result.selections) <= 1 + 1e-8)
     assert result.boundary_error <= 1e-5 and result.surface_error <= 5e-3
     assert result.inclusion_residual <= 1e-2
     assert result.u is not None and result.u.shape == (nodes, 1)
@@ -165,8 +175,8 @@ def test_resolved_states_tie_z_to_x(seed):
 
 
 def test_reduced_and_full_73_solve_to_the_same_accuracy():
-    full = qdframe.solve("paper-7.3", nodes=21)
-    reduced = qdframe.solve("paper-7.3-reduced", nodes=21)
+    full = qdframe.solve("paper-7.3", nodes=101)
+    reduced = qdframe.solve("paper-7.3-reduced", nodes=101)
     for result in (full, reduced):
         assert result.status == "solved" and result.boundary_error <= 1e-5 and result.surface_error <= 5e-3
     assert np.array_equal(reduced.z[:, :3], reduced.x[:, 3:])

@@ -103,7 +103,7 @@ def test_json_has_the_contract_fields(tmp_path):
                 "objective", "I", "terms", "boundary_error", "inclusion_residual", "surface_error",
                 "consistency_error", "t", "x", "z", "u", "history"):
         assert key in data
-    assert set(data["terms"]) == {"phi", "chi", "omega", "upsilon"}
+    assert set(data["terms"]) == {"phi", "chi", "omega", "upsilon", "sigma"}
     assert len(data["t"]) == 11 and np.shape(data["x"]) == (11, 2) and np.shape(data["z"]) == (11, 2)
     assert data["status"] == "max_iter" and data["iterations"] == 3
     assert set(data["history"][0]) >= {"objective", "I", "step", "direction_norm", "time_s"}
@@ -141,7 +141,8 @@ def test_defaults_are_gauss_newton_to_1e_10():
 
 
 def test_grid_continuation_refines_a_coarse_solution():
-    direct = qdframe.solve("paper-7.1", nodes=201)
+    direct = qdframe.solve("paper-7.1", nodes=201, continuation="none")
+    ladder = qdframe.solve("paper-7.1", nodes=201)  # gauss-newton's own: 101, then 201
     shown = []
     refined = qdframe.solve("paper-7.1", nodes=201, continuation=(11, 51), progress=shown.append)
     assert refined.status == "solved" and refined.nodes == 201 and len(refined.t) == 201
@@ -155,6 +156,7 @@ def test_grid_continuation_refines_a_coarse_solution():
     starts = [h for h, before in zip(refined.history[1:], refined.history) if h.nodes != before.nodes]
     assert [h.nodes for h in starts] == [51, 201] and all(h.step == 0.0 for h in starts)
     assert direct.status == "solved" and direct.options["grids"] == [201]
+    assert ladder.status == "solved" and ladder.options["grids"] == [101, 201]
     # progress sees every step once, numbered over all grids
     assert [r.iteration for r in shown] == list(range(1, refined.iterations + 1))
     assert [(r.iteration, r.nodes) for r in shown] == [(h.iteration, h.nodes) for h in refined.history if h.step > 0]

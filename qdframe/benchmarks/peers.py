@@ -75,7 +75,7 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
         import casadi as ca
         import nosnoc
 
-    functional = Functional(model, Grid(model.T, nodes))
+    functional = Functional(model, Grid(model.T, nodes), signs="band")  # judged by Filippov's set (band), no selections
     start = time.perf_counter()
     nos_model, ocp = _problem(model, ca, nosnoc)
     opts = nosnoc.NosnocOpts()

@@ -344,7 +344,7 @@ def _run_peer(case: Case, row: dict, history: dict) -> None:
                wall_time_s=peer.wall_time_s, setup_time_s=peer.setup_time_s)
     if peer.x is None:
         return
-    functional = Functional(model, Grid(model.T, case.nodes))
+    functional = Functional(model, Grid(model.T, case.nodes), signs="band")  # Filippov's set, no selections to choose
     xi = functional.pack(peer.x, peer.z)
     terms, residuals = functional.terms(xi), functional.residuals(xi)
     exact = model.exact_solution(functional.grid.t)

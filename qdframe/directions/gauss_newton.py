@@ -344,7 +344,7 @@ class _System:
         settings.verbose = False
         for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
             setattr(settings, name, 1e-12)
-        scale = 1.0 / max(self.value, 1e-8)  # the QP objective near O(1): Clarabel's gap tolerances are absolute
+        scale = 1.0 / max(self.value, 1e-6)  # the QP objective near O(1): Clarabel's gap tolerances are absolute
         solution = clarabel.DefaultSolver(
             sp.triu(scale * P, format="csc"), scale * q, A, b_vec,
             [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(count)], settings,

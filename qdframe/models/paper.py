@@ -15,6 +15,7 @@ class Paper71(InclusionModel):
     """
 
     name = "paper-7.1"
+    default_scheme = "trapezoid"  # the paper's discretization (Section 7)
     description = "Example 7.1: intersection of intervals, cost ∫|x1|, λ = 10"
     state_names = ("x1", "x2")
     default_T = 1.0
@@ -72,6 +73,7 @@ class Paper72(InclusionModel):
     """
 
     name = "paper-7.2"
+    default_scheme = "trapezoid"  # the paper's discretization (Section 7)
     description = "Example 7.2: unit disc ∩ ellipse(x1), ψ ∈ S_2"
     state_names = ("x1", "x2")
     default_T = 1.0

@@ -18,6 +18,7 @@ class Paper71Sets(SetModel):
     """Example 7.1: x1' ∈ [x1, x2] ∩ [x2 − 1, x2 + 1], x2' = x1 + 1, cost ∫|x1|, λ = 10."""
 
     name = "paper-7.1-sets"
+    default_scheme = "trapezoid"  # the paper's discretization (Section 7)
     state_names = "x1 x2"
     default_x0 = (0.0, 0.0)
     default_xT = {"x2": 1.0}
@@ -40,6 +41,7 @@ class Paper72Sets(SetModel):
     """Example 7.2: x' ∈ B_1(0) ∩ E(x), E(x) = {(a, b): (a − 2)²/(x1² + 3) + b² ≤ 1}, ψ ∈ S_2."""
 
     name = "paper-7.2-sets"
+    default_scheme = "trapezoid"  # the paper's discretization (Section 7)
     state_names = "x1 x2"
     default_x0 = (0.0, 0.0)
     default_xT = {"x1": 0.75, "x2": 0.5}
