@@ -57,6 +57,17 @@ def vector(text: str) -> list[float]:
     return values
 
 
+def boundary_vector(text: str) -> list[float]:
+    """Comma-separated finite numbers, or `free` (NaN) where the value is not given."""
+    try:
+        values = [float("nan") if v.strip() == "free" else float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers or free, like 0,free,-2, got {text!r}") from None
+    if any(np.isinf(v) or (np.isnan(v) and part.strip() != "free") for v, part in zip(values, text.split(","))):
+        raise argparse.ArgumentTypeError(f"expected finite numbers or the word free, got {text!r}")
+    return values
+
+
 def node_counts(text: str) -> tuple[int, ...]:
     """Comma-separated node counts ≥ 2."""
     try:

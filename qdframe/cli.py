@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .argtypes import continuation, finite_float, integer, positive_float, vector
+from .argtypes import boundary_vector, continuation, finite_float, integer, names, positive_float, vector
 from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
@@ -67,8 +67,17 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--eps", type=positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
     solve.add_argument("--gamma-max", type=positive_float, default=1.0, help="line-search bound γ̄ (default 1)")
     solve.add_argument("--T", type=positive_float, help="final time (overrides the model's)")
-    solve.add_argument("--x0", type=vector, help="initial state V,V,... (overrides the model's)")
-    solve.add_argument("--xT", type=vector, help="end values of the fixed coordinates J, in order")
+    solve.add_argument("--x0", type=boundary_vector, help="initial state V,V,... (overrides the model's); free: not given")
+    solve.add_argument("--xT", type=boundary_vector,
+                       help="end values of the model's fixed coordinates J, in order; or all n, free where not given")
+    solve.add_argument("--periodic", type=names, metavar="I,I,..", help="coordinates (names or indices) with x(T) = x(0)")
+    solve.add_argument("--scheme", help="discretization: implicit-euler, radau-iia (odd N), trapezoid "
+                                        "(default: the model's, implicit-euler unless it says otherwise)")
+    solve.add_argument("--signs", choices=("exact", "band"), default="exact",
+                       help="sign terms a·Sgn(s): exact selections λ ∈ Sgn(s) (default) or the C¹ band")
+    solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
+    solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
+                       help="`solved` needs every pointwise residual ≤ this × max(1, max|x|) (default 1e-8)")
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -164,7 +173,7 @@ def _solve(args: argparse.Namespace) -> int:
     for flag in ("json", "plot"):
         if getattr(args, flag):
             _writable(f"--{flag}", getattr(args, flag))
-    overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT}
+    overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic}
     model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
     show_progress = not args.quiet and sys.stderr.isatty()
     result = solve(
@@ -179,6 +188,10 @@ def _solve(args: argparse.Namespace) -> int:
         gamma_max=args.gamma_max,
         continuation=args.continuation,
         progress=_progress_printer() if show_progress else None,
+        scheme=args.scheme,
+        signs=args.signs,
+        selection_scale=args.selection_scale,
+        residual_tol=args.residual_tol,
     )
     if show_progress:
         print(file=sys.stderr)

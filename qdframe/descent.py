@@ -114,7 +114,7 @@ def solve(
     solver = make_direction(direction)
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
     grids = grid_schedule(nodes, solver.default_continuation if continuation is None else continuation,
-                          solver.coarsest_nodes)
+                          solver.coarsest_nodes, solver.ladder_steps)
     stages = []  # the functionals solved in turn: each grid, the first one also with the band if exact
     for count in grids:
         functional = Functional(model, Grid(model.T, count, scheme), signs=signs, selection_scale=selection_scale)
@@ -166,20 +166,24 @@ COARSEST_NODES = 11  # step T/10, the paper's final step in Section 7
 BAND_START_ITERATIONS = 10  # at most this many iterations of the band start of an exact solve
 
 
-def grid_schedule(nodes: int, continuation: Sequence[int] | str, coarsest: int = COARSEST_NODES) -> list[int]:
+def grid_schedule(nodes: int, continuation: Sequence[int] | str, coarsest: int = COARSEST_NODES,
+                  steps: Sequence[int] = (1,)) -> list[int]:
     """The grids a solve runs on, coarsest first, ending with `nodes`.
 
-    "auto": `coarsest` (11: step T/10), then refined tenfold (101, 1001, …) below `nodes`; "none" or ():
+    "auto": `coarsest` (11: step T/10) intervals times each of `steps` per decade, below
+    `nodes`: 11, 101, 1001, … with steps (1,); 101, 301, 1001, 3001, … from 101 with
+    steps (1, 3) (gauss-newton's: a switch found on one grid is at most a few nodes off on
+    the next, and semismooth Newton moves it about one node per iteration); "none" or ():
     `nodes` alone; a sequence: those node counts (increasing, below `nodes`), then `nodes`.
     Starting the paper's first-order descent from a coarse solution keeps its iteration
     count flat in N: on a fine grid alone the δ-active kinks of many nodes cut its steps.
     """
     if isinstance(continuation, str):
         if continuation == "auto":
-            coarse, ladder = [], coarsest
-            while ladder < nodes:
-                coarse.append(ladder)
-                ladder = 10 * (ladder - 1) + 1
+            coarse, decade = [], coarsest - 1
+            while decade + 1 < nodes:
+                coarse += [decade * step + 1 for step in steps if decade * step + 1 < nodes]
+                decade *= 10
             return coarse + [nodes]
         if continuation == "none":
             return [nodes]
@@ -351,7 +355,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         z=z,
         u=functional.controls(xi) if functional.m else None,
         selections=functional.selections(xi) if functional.p else None,
-        selection_names=[term.name for _, term in functional.sign_terms],
+        selection_names=[term.name for _, term in functional.selection_terms],
         state_names=tuple(model.state_names),
         set_bounds=bounds,
         options={

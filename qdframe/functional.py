@@ -175,21 +175,27 @@ class Functional:
         self.n = model.n_states
         self.m = model.n_controls
         self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
-        # the sign terms with a selection column each, in block order: (block index, term)
+        # the sign terms in block order, (block index, term), and each one's selection column:
+        # terms with the same `switch` callable share one λ (one surface, one Filippov selection)
         self.sign_terms = [] if signs == "band" else [
             (b, term) for b, block in enumerate(self.blocks) for term in block.signs
         ]
-        self.p = len(self.sign_terms)
+        columns: dict[int, int] = {}
+        self.sign_columns = [columns.setdefault(id(term.switch), len(columns)) for _, term in self.sign_terms]
+        self.selection_terms = [self.sign_terms[self.sign_columns.index(k)] for k in range(len(columns))]
+        self.p = len(columns)
         self.dim = 2 * self.n + self.m + self.p
         self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
         self.width = self.args + self.p  # width of the sides' gradients: (x, u, λ)
         self.surface = model.surface()
         self.cost = model.cost()
         self.penalty = float(self.cost.weight) if self.cost is not None else 1.0
-        self.end = np.asarray(model.end_indices, dtype=int)
+        self.end = np.asarray(model.end_indices, dtype=int)  # J: x_j(T) = xT_j
+        self.periodic = np.asarray(model.periodic, dtype=int)  # P: x_i(T) = x_i(0)
+        self.start_given = np.isfinite(model.x0)  # x_i(0) = x0_i given; NaN: free
         self.psi_samples = psi_samples
         self.free = np.ones((grid.nodes, self.dim), dtype=bool)
-        self.free[0, : self.n] = False  # x(t_0) = x0 is known
+        self.free[0, : self.n] = ~self.start_given  # a given x_i(t_0) = x0_i is not an unknown
         self.resolved = dict(model.resolved)  # z_i ≡ x_j: z_i is not an unknown
         for i in self.resolved:
             self.free[:, self.n + i] = False
@@ -226,7 +232,7 @@ class Functional:
         nodes = x.shape[0]
         parts = [x, z, np.zeros((nodes, self.m)) if u is None else u, np.zeros((nodes, self.p))]
         xi = np.concatenate(parts, axis=1).astype(float)
-        xi[0, : self.n] = self.model.x0
+        xi[0, : self.n] = np.where(self.start_given, self.model.x0, xi[0, : self.n])
         for i, j in self.resolved.items():
             xi[:, self.n + i] = xi[:, j]
         if self.p:
@@ -234,7 +240,7 @@ class Functional:
                 y = self.arguments(xi)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     selections = np.stack([np.nan_to_num(np.clip(self._switch(self.blocks[b], term, y)[0] / term.band,
-                                                                 -1.0, 1.0)) for b, term in self.sign_terms], axis=1)
+                                                                 -1.0, 1.0)) for b, term in self.selection_terms], axis=1)
             xi[:, 2 * self.n + self.m :] = selections
         return xi
 
@@ -254,18 +260,18 @@ class Functional:
         """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
         x, z = self.split(xi)
         y = self.arguments(xi)
-        w = self.weights
-        h2 = sum(state.h**2 for state in self._block_states(y, z, self.selections(xi)))
-        phi = 0.5 * float(w @ h2)
-        chi = 0.5 * float(np.sum(self._end_residual(z) ** 2))
-        omega = 0.0
-        if self.surface is not None:
-            e, _ = self._surface(x)
-            omega = 0.5 * float(w @ np.sum(e**2, axis=1))
-        upsilon = 0.5 * float(w @ np.sum(self._consistency(x, z) ** 2, axis=1))
-        sigma = 0.5 * float(w @ np.sum(self.selection_residual(xi)[0] ** 2, axis=1)) if self.p else 0.0
+
+        def integral(values: np.ndarray) -> float:
+            """Σ_k w_k·values_k (an elementwise sum: a BLAS dot goes multi-threaded above ~1e4 nodes)."""
+            return float(np.sum(self.weights * values))
+
+        phi = 0.5 * integral(sum(state.h**2 for state in self._block_states(y, z, self.selections(xi))))
+        chi = 0.5 * float(np.sum(self._end_residual(x, z) ** 2))
+        omega = 0.5 * integral(np.sum(self._surface(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
+        upsilon = 0.5 * integral(np.sum(self._consistency(x, z) ** 2, axis=1))
+        sigma = 0.5 * integral(np.sum(self.selection_residual(xi)[0] ** 2, axis=1)) if self.p else 0.0
         total = phi + chi + omega + upsilon + sigma
-        cost = float(w @ self._cost_integrand(y)) if self.cost is not None else 0.0
+        cost = integral(self._cost_integrand(y)) if self.cost is not None else 0.0
         objective = cost + self.penalty * total if self.cost is not None else total
         return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective)
 
@@ -273,8 +279,8 @@ class Functional:
         return self.terms(xi).objective
 
     def boundary_error(self, xi: np.ndarray) -> float:
-        """max_j |x0_j + ∫z_j − xT_j| over the fixed end coordinates (0 if J is empty)."""
-        end = self._end_residual(self.split(xi)[1])
+        """max |x_j(0) + ∫z_j − xT_j| over J and |∫z_i| over the periodic P (0 if both are empty)."""
+        end = self._end_residual(*self.split(xi))
         return float(np.max(np.abs(end))) if end.size else 0.0
 
     def residuals(self, xi: np.ndarray) -> Residuals:
@@ -300,7 +306,7 @@ class Functional:
         nodes = y.shape[0]
         residual = np.empty((nodes, self.p))
         jacobian = np.zeros((nodes, self.p, self.width))
-        for k, (b, term) in enumerate(self.sign_terms):
+        for k, (b, term) in enumerate(self.selection_terms):
             s, ds = self._switch(self.blocks[b], term, y)
             moved = lam[:, k] + c * s
             inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
@@ -330,13 +336,19 @@ class Functional:
         nodes, n = x.shape
         w = self.weights
         smooth = np.zeros((nodes, self.dim))
-        # υ (4.55): x-part r_k, z-part −(Cᵀ w r)_k / w_k
+        # υ (4.55): x-part r_k (and −Σ w_k r_k / w_0 on a free x_i(0)), z-part −(Cᵀ w r)_k / w_k
         r = self._consistency(x, z)
         smooth[:, :n] += r
+        smooth[0, :n] -= ~self.start_given * (w @ r) / w[0]
         smooth[:, n : 2 * n] -= self.grid.cumulative_adjoint(w[:, None] * r) / w[:, None]
-        # χ (4.44): the end residual on the fixed coordinates' z, at every node
-        if self.end.size:
-            smooth[:, n + self.end] += self._end_residual(z)
+        # χ (4.44): each end residual on its coordinate's z at every node (the integral's
+        # weights over w_k), and on a free x_j(0)
+        end = self._end_residual(x, z)
+        if end.size:
+            coords = np.concatenate([self.end, self.periodic])
+            np.add.at(smooth, (slice(None), n + coords), (self.grid.integral_weights / w)[:, None] * end)
+            starts = end[: self.end.size] * ~self.start_given[self.end]
+            np.add.at(smooth[0], self.end, starts / w[0])
         # ω (4.6)
         if self.surface is not None:
             e, de = self._surface(x)
@@ -416,17 +428,19 @@ class Functional:
         return self._consistency(*self.split(xi))
 
     def end_residual(self, xi: np.ndarray) -> np.ndarray:
-        """x0_j + ∫_0^T z_j − xT_j for j ∈ J."""
-        return self._end_residual(self.split(xi)[1])
+        """x_j(0) + ∫_0^T z_j − xT_j for j ∈ J, then ∫_0^T z_i (= x_i(T) − x_i(0)) for i ∈ P."""
+        return self._end_residual(*self.split(xi))
 
     # ---------------------------------------------------------------- pieces
-    def _end_residual(self, z: np.ndarray) -> np.ndarray:
-        if not self.end.size:
+    def _end_residual(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        if not (self.end.size or self.periodic.size):
             return np.zeros(0)
-        return self.model.x0[self.end] + self.grid.integral(z[:, self.end]) - self.model.end_values
+        fixed = x[0, self.end] + self.grid.integral(z[:, self.end]) - self.model.end_values
+        return np.concatenate([fixed, self.grid.integral(z[:, self.periodic])])
 
     def _consistency(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        return x - self.model.x0 - self.grid.cumulative(z)
+        """x_k − x(t_0) − ∫_0^{t_k} z (x(t_0) = x0 where given)."""
+        return x - x[:1] - self.grid.cumulative(z)
 
     def _embed(self, grads: np.ndarray) -> np.ndarray:
         """Gradients in y = (x, u) or (x, u, λ) placed in the x-, u- (and λ-) slots of ξ's row."""
@@ -490,7 +504,7 @@ class Functional:
         """For each sign term of block b: (its column in y = (x, u, λ), its λ), or None (band)."""
         if not self.p:
             return [None] * len(self.blocks[b].signs)
-        columns = [k for k, (block, _) in enumerate(self.sign_terms) if block == b]
+        columns = [k for k, (block, _) in zip(self.sign_columns, self.sign_terms) if block == b]
         return [(self.args + k, lam[:, k]) for k in columns]
 
     def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,

@@ -171,6 +171,7 @@ class InclusionModel(ABC):
     default_x0: ClassVar[tuple[float, ...]] = ()
     end_indices: ClassVar[tuple[int, ...]] = ()  # J, zero-based
     default_end_values: ClassVar[tuple[float, ...]] = ()
+    periodic: ClassVar[tuple[int, ...]] = ()  # P: x_i(T) = x_i(0), zero-based
     default_tol: ClassVar[float] = 1e-10
     # the scheme a solve uses unless told (qdframe.schemes): implicit Euler, first order and
     # robust for sticking, sliding and switching; smooth models may prefer "radau-iia" or
@@ -182,12 +183,22 @@ class InclusionModel(ABC):
         T: float | None = None,
         x0: Sequence[float] | None = None,
         end_values: Sequence[float] | None = None,
+        periodic: Sequence[int | str] | None = None,
     ) -> None:
+        """`x0`: n values, NaN where x_i(0) is free. `end_values`: the values of the model's
+        J in order, or n values with NaN where x_i(T) is free (this chooses J). `periodic`:
+        the coordinates (indices or state names) with x_i(T) = x_i(0)."""
         n = len(self.state_names)
         if n == 0:
             raise InputError(f"{type(self).__name__}.state_names", "a non-empty tuple of names")
         self.T = _positive_float("T", self.default_T if T is None else T)
-        self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n)
+        self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n, free=True)
+        if end_values is not None and len(end_values) == n != len(self.end_indices):
+            chosen = np.asarray(end_values, dtype=float)
+            self.end_indices = tuple(int(i) for i in np.flatnonzero(~np.isnan(chosen)))
+            end_values = chosen[~np.isnan(chosen)]
+        if periodic is not None:
+            self.periodic = tuple(self._index("periodic", c) for c in periodic)
         for j in self.end_indices:
             if not (isinstance(j, (int, np.integer)) and 0 <= j < n):
                 raise InputError(f"{type(self).__name__}.end_indices", f"indices in 0..{n - 1}", j)
@@ -195,7 +206,19 @@ class InclusionModel(ABC):
             raise InputError(f"{type(self).__name__}.end_indices", "distinct indices", self.end_indices)
         values = self.default_end_values if end_values is None else end_values
         self.end_values = _finite_vector("xT", values, len(self.end_indices))
+        for i in self.periodic:
+            if not (isinstance(i, (int, np.integer)) and 0 <= i < n) or i in self.end_indices:
+                raise InputError("periodic", f"state indices in 0..{n - 1} not in the end coordinates J", i)
         self._check_blocks()
+
+    def _index(self, field_name: str, coordinate: int | str) -> int:
+        """A state index from an index or a state name."""
+        if isinstance(coordinate, str) and coordinate in self.state_names:
+            return self.state_names.index(coordinate)
+        try:
+            return int(coordinate)
+        except (TypeError, ValueError):
+            raise InputError(field_name, f"state indices or names ({', '.join(self.state_names)})", coordinate) from None
 
     @property
     def n_states(self) -> int:
@@ -218,8 +241,8 @@ class InclusionModel(ABC):
         return None
 
     def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The first iterate (x, z), each (N, n). Default: x ≡ x0, z ≡ 0."""
-        return np.tile(self.x0, (t.size, 1)), np.zeros((t.size, self.n_states))
+        """The first iterate (x, z), each (N, n). Default: x ≡ x0 (0 where x0 is free), z ≡ 0."""
+        return np.tile(np.nan_to_num(self.x0), (t.size, 1)), np.zeros((t.size, self.n_states))
 
     def initial_controls(self, t: np.ndarray) -> np.ndarray:
         """The first iterate of the controls u, (N, m). Default: u ≡ 0."""
@@ -258,13 +281,14 @@ def _positive_float(field_name: str, value: object) -> float:
     return number
 
 
-def _finite_vector(field_name: str, values: object, length: int) -> np.ndarray:
+def _finite_vector(field_name: str, values: object, length: int, free: bool = False) -> np.ndarray:
     try:
         vector = np.asarray(values, dtype=float).reshape(-1)
     except (TypeError, ValueError):
         raise InputError(field_name, f"{length} numbers", values) from None
     if vector.size != length:
         raise InputError(field_name, f"{length} comma-separated numbers", ",".join(map(str, vector)))
-    if not np.all(np.isfinite(vector)):
-        raise InputError(field_name, "finite numbers (no NaN or inf)", ",".join(map(str, vector)))
+    if not np.all(np.isfinite(vector) | (free & np.isnan(vector))):
+        expected = "finite numbers, or nan (free)" if free else "finite numbers (no NaN or inf)"
+        raise InputError(field_name, expected, ",".join(map(str, vector)))
     return vector

@@ -713,6 +713,13 @@ def _scalar_pieces(exprs: list[sp.Expr], symbols) -> Callable:
 
 
 def _switch(expr: sp.Expr, symbols) -> Callable:
+    """s(y) and ∇s; one callable per distinct expression, so that sign terms on the same
+    surface share one Filippov selection (:class:`~qdframe.functional.Functional`)."""
+    return _switch_cached(expr, tuple(symbols))
+
+
+@lru_cache(maxsize=None)
+def _switch_cached(expr: sp.Expr, symbols: tuple) -> Callable:
     vectorized = _Vectorized([expr], symbols)
 
     def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

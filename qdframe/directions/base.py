@@ -48,6 +48,7 @@ class DirectionSolver(ABC):
     default_line_search: ClassVar[str] = "golden"  # used when the caller names none
     default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (descent.grid_schedule)
     coarsest_nodes: ClassVar[int] = 11  # the first grid of "auto"
+    ladder_steps: ClassVar[tuple[int, ...]] = (1,)  # grids of "auto" per decade: (coarsest − 1)·step·10^k + 1
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional`: reset any state kept between iterations."""

@@ -60,10 +60,11 @@ class GaussNewton(DirectionSolver):
 
     name = "gauss-newton"
     default_line_search = "armijo"  # a Newton-type step: try γ = 1 first
-    # a grid ladder 101, 1001, … below N: semismooth Newton then finds each switch from the
-    # coarser grid's, a few nodes off, instead of from the model's start
+    # a grid ladder 101, 301, 1001, … below N: semismooth Newton then finds each switch from
+    # the coarser grid's, a few nodes off, instead of from the model's start
     default_continuation = "auto"
     coarsest_nodes = 101
+    ladder_steps = (1, 3)  # 101, 301, 1001, 3001, …
     mu: float = 1e-10
     mu_min: float = 1e-12
     mu_max: float = 1e8
@@ -158,14 +159,19 @@ class _System:
             residuals.append(res)
             count += res.size
 
-        consistency = f.consistency(xi)  # υ, one row per node and state
+        consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
+        start_free = np.tile(~f.start_given, nodes)  # −√w_k on a free x_i(0) (0 where it is given)
         add((root_w[:, None] * consistency).ravel(),
-            np.stack([x_cols.ravel(), Z_cols.ravel()], axis=1),
-            np.stack([np.repeat(root_w, self.n), -np.repeat(root_w, self.n)], axis=1))
-        end = f.end_residual(xi)  # χ
+            np.stack([x_cols.ravel(), Z_cols.ravel(), np.tile(x_cols[0], nodes)], axis=1),
+            np.stack([np.repeat(root_w, self.n), -np.repeat(root_w, self.n), -np.repeat(root_w, self.n) * start_free],
+                     axis=1))
+        end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
         if end.size:
-            add(end, Z_cols[-1, f.end][:, None], np.ones((end.size, 1)))
+            coords = np.concatenate([f.end, f.periodic])
+            starts = np.concatenate([~f.start_given[f.end], np.zeros(f.periodic.size, dtype=bool)])
+            add(end, np.stack([Z_cols[-1, coords], x_cols[0, coords]], axis=1),
+                np.stack([np.ones(end.size), starts.astype(float)], axis=1))
         if f.surface is not None:  # ω
             e, de = f.surface_values(xi)
             o = e.shape[1]
@@ -188,15 +194,15 @@ class _System:
         return np.concatenate(residuals), jacobian
 
     def _constraints(self) -> sp.csr_matrix:
-        """E d = 0: dx_0 = 0, dZ_0 = 0, dz_i = dx_j for resolved states,
+        """E d = 0: dx_0 = 0 where x(t_0) is given, dZ_0 = 0, dz_i = dx_j for resolved states,
         dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j = 0 (the scheme's rule)."""
         n = self.n
         x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
-        fixed = np.concatenate([x_cols[0], Z_cols[0]])
-        rows = [np.arange(2 * n)]
+        fixed = np.concatenate([x_cols[0, self.f.start_given], Z_cols[0]])
+        rows = [np.arange(fixed.size)]
         cols = [fixed]
-        vals = [np.ones(2 * n)]
-        count = 2 * n
+        vals = [np.ones(fixed.size)]
+        count = fixed.size
         for i, j in self.f.resolved.items():  # dz_i = dx_j at every node
             tie = count + np.arange(self.nodes)
             rows += [tie, tie]
