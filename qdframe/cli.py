@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .argtypes import boundary_vector, continuation, finite_float, integer, names, positive_float, vector
+from .argtypes import boundary_vector, continuation, finite_float, integer, names, node_counts, positive_float, vector
 from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
@@ -103,6 +103,14 @@ def build_parser() -> argparse.ArgumentParser:
     bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
     bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")
     benches.add_parser("hard", help="the hard-case suite: what each case measured")
+    bench_friction = benches.add_parser(
+        "friction", help="the stick/slide/switch suite: status, iterations, time, strict residual, error and order per N"
+    )
+    bench_friction.add_argument("--nodes", type=node_counts, default=(101, 1001, 10001), metavar="N,N,..",
+                                help="grids (default 101,1001,10001)")
+    bench_friction.add_argument("--schemes", type=names, metavar="NAME,NAME,..",
+                                help="schemes (default: each model's own)")
+    bench_friction.add_argument("--models", type=names, metavar="NAME,NAME,..", help="models (default: the suite)")
     add_run_parser(benches)
 
     add_check_parser(commands)
@@ -119,7 +127,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "simulate":
             return _simulate(args)
         if args.command == "bench":
-            commands = {"run": main_run, "hard": lambda _args: _bench_hard(), "directions": _bench_directions}
+            commands = {"run": main_run, "hard": lambda _args: _bench_hard(), "directions": _bench_directions,
+                        "friction": _bench_friction}
             return commands[args.bench_command](args)
         if args.command == "check-model":
             return main_check(args)
@@ -243,6 +252,14 @@ def _bench_directions(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(format_table(report))
     return 0
+
+
+def _bench_friction(args: argparse.Namespace) -> int:
+    from .benchmarks import friction
+
+    rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,))
+    print(friction.table(rows))
+    return 0 if all(r.status == "solved" for r in rows) else 1
 
 
 def _bench_hard() -> int:

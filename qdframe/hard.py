@@ -224,9 +224,21 @@ def determinism() -> HardCase:
     return HardCase("determinism (7.1 twice)", "bit-identical" if same else "results differ", same)
 
 
+def friction_suite() -> HardCase:
+    """The stick/slide/switch suite at N = 101 from the default start: solved, strict residual ≤ 1e-8·scale."""
+    from .benchmarks.friction import SUITE, run_suite
+
+    rows = run_suite(SUITE, (101,))
+    failed = [r.model for r in rows if r.status != "solved"]
+    worst = max(r.residual for r in rows)
+    return HardCase("stick/slide/switch suite (N = 101)",
+                    f"{len(rows) - len(failed)}/{len(rows)} solved, strict residual ≤ {worst:.1e}"
+                    + (f", failed: {', '.join(failed)}" if failed else ""), not failed)
+
+
 CASES: tuple[Callable[[], HardCase], ...] = (
     degenerate_polytopes, extreme_scales, non_unique_psi, on_the_boundary, unreachable_end,
-    many_nodes, long_horizon, stiff, determinism,
+    many_nodes, long_horizon, stiff, determinism, friction_suite,
 )
 
 

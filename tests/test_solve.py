@@ -128,7 +128,7 @@ def test_bad_arguments_name_the_field(kwargs, field):
 
 @pytest.mark.parametrize(
     "overrides, field",
-    [({"T": 0}, "T"), ({"x0": [1.0]}, "x0"), ({"x0": [np.nan, 0]}, "x0"), ({"end_values": [1, 2, 3]}, "xT")],
+    [({"T": 0}, "T"), ({"x0": [1.0]}, "x0"), ({"x0": [np.inf, 0]}, "x0"), ({"periodic": ["nope"]}, "periodic"), ({"end_values": [1, 2, 3]}, "xT")],
 )
 def test_bad_boundary_data_names_the_field(overrides, field):
     with pytest.raises(qdframe.InputError, match=field):

@@ -74,7 +74,7 @@ class _ExactModel(InclusionModel):
     def is_default(self) -> bool:
         return (
             self.T == self.default_T
-            and np.array_equal(self.x0, self.default_x0)
+            and np.array_equal(self.x0, self.default_x0, equal_nan=True)
             and np.array_equal(self.end_values, np.asarray(self.default_end_values, dtype=float))
         )
 
@@ -130,13 +130,15 @@ class BlockStopStick(_ExactModel):
 
 
 class BlockStopStickBVP(BlockStopStick):
-    """:class:`BlockStopStick` as a two-point problem: x(0) = (0, 2) and p(3) = 1 given.
+    """:class:`BlockStopStick` as a two-point problem: v(0) = 2 and p(3) = 1 given, p(0) free.
 
-    The exact solution is the same (it is the only trajectory from x(0); p(3) = 1 agrees).
+    The exact solution is the same: the block stops at t = 1 after travelling 1 and sticks,
+    so p(3) = 1 gives p(0) = 0 (a given x(0) and p(3) would fix p twice).
     """
 
     name = "block-stop-stick-bvp"
-    description = "Coulomb block v' ∈ −3·Sgn(v) + 1, x(0) = (0, 2), p(3) = 1: stops at t = 1 and sticks"
+    description = "Coulomb block v' ∈ −3·Sgn(v) + 1, v(0) = 2, p(3) = 1, p(0) free: stops at t = 1 and sticks"
+    default_x0 = (float("nan"), STOP_V0)
     end_indices = (0,)
     default_end_values = (1.0,)
 
@@ -156,7 +158,7 @@ def breakaway_motion(t: np.ndarray) -> np.ndarray:
 class BlockBreakaway(_ExactModel):
     """A block at rest under a ramped pull f = k·t: sticks until the pull exceeds friction.
 
-        p' = v,   v' ∈ −μg·Sgn(v) + k·c,   c' = 1,   μg = k = 1,   x(0) = (0, 0, 0),   T = 2.
+        p' = v,   v' ∈ −μg·Sgn(v) + k·c,   c' = 1,   μg = k = 1,   x(0) = (0, 0, 0),   T = 2.2.
 
     The clock c = t makes the ramp autonomous. Exact Filippov solution: v ≡ 0, p ≡ 0 for
     t ≤ 1 (the selection λ_v = c/μg = t ∈ [0, 1] of Sgn(0)); breakaway at t = 1, then
@@ -166,7 +168,7 @@ class BlockBreakaway(_ExactModel):
     name = "block-breakaway"
     description = "Block at rest, pull f = t against friction 1: sticks until t = 1, then v = (t−1)²/2"
     state_names = ("position", "velocity", "clock")
-    default_T = 2.0
+    default_T = 2.2  # no switch on a node of N = 101, 1001, 10001 (h = 0.022, ...)
     default_x0 = (0.0, 0.0, 0.0)
     switch_times = (BREAK_TIME,)
 
@@ -281,7 +283,7 @@ class TwoSurfaceSliding(_ExactModel):
     """Two relays coupled through the sign of x2, sliding on x2 = 0 and then on x1 = x2 = 0.
 
         x1' ∈ a1 − Sgn(x1) − b·Sgn(x2),   x2' ∈ a2 − Sgn(x2),
-        a1 = 0.25, a2 = −0.25, b = 0.5,   x(0) = (0.5, −0.3),   T = 2.
+        a1 = 0.25, a2 = −0.25, b = 0.5,   x(0) = (0.5, −0.3),   T = 2.2.
 
     Exact Filippov solution (Sgn(x2) ∋ λ2, Sgn(x1) ∋ λ1):
       t ≤ 0.4:         x2' = 0.75, x1' = −0.25 (λ1 = 1, λ2 = −1); x(0.4) = (0.4, 0);
@@ -296,7 +298,7 @@ class TwoSurfaceSliding(_ExactModel):
     name = "two-surface-sliding"
     description = "x1' ∈ 0.25 − Sgn(x1) − 0.5·Sgn(x2), x2' ∈ −0.25 − Sgn(x2): slides on x2 = 0, then x1 = x2 = 0"
     state_names = ("x1", "x2")
-    default_T = 2.0
+    default_T = 2.2  # no switch on a node of N = 101, 1001, 10001 (h = 0.022, ...)
     default_x0 = TWO_X0
     switch_times = (TWO_REACH2, TWO_REACH1)
 

@@ -1,0 +1,67 @@
+"""The stick/slide/switch suite solved from the default start: `solved` at N = 101, 1001,
+10001 with gauss-newton, Filippov's inclusion strictly (the selections λ ∈ Sgn(s)), the
+exact motion to implicit Euler's first order, the exact selections away from switches."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe.benchmarks.friction import SUITE, run_suite
+from qdframe.models.friction import FRICTION_MODELS
+
+NODES = (101, 1001, 10001)
+
+
+@pytest.fixture(scope="module")
+def results():
+    return {(name, nodes): qdframe.solve(name, nodes=nodes) for name in SUITE for nodes in NODES}
+
+
+@pytest.mark.parametrize("name", SUITE)
+def test_solved_strictly_at_every_grid(results, name):
+    for nodes in NODES:
+        result = results[name, nodes]
+        assert result.status == "solved", (nodes, result.message)
+        scale = max(1.0, float(np.max(np.abs(result.x))))
+        assert result.inclusion_residual <= 1e-8 * scale and result.selection_residual <= 1e-8 * scale
+        assert np.all(np.abs(result.selections) <= 1 + 1e-8 * scale)
+        given = np.isfinite(qdframe.load_model(name).x0)
+        assert np.array_equal(result.x[0, given], qdframe.load_model(name).x0[given])
+
+
+@pytest.mark.parametrize("name", [n for n in SUITE if n != "sliding-mode-terminal"])
+def test_error_against_the_exact_solution_is_first_order(results, name):
+    errors = [results[name, nodes].solution_error for nodes in NODES]
+    assert errors[0] <= 0.1  # at h ≈ 0.02–0.03
+    if errors[0] > 1e-8:  # (two-surface-sliding: implicit Euler is exact at the nodes, to the solver's precision)
+        assert errors[1] / errors[0] == pytest.approx(0.1, rel=0.1)
+        assert errors[2] / errors[1] == pytest.approx(0.1, rel=0.1)
+
+
+@pytest.mark.parametrize("name", list(FRICTION_MODELS))
+def test_selections_match_the_exact_ones_away_from_switches(results, name):
+    result = results[name, 1001]
+    model = FRICTION_MODELS[name]()
+    exact = model.exact_multipliers(result.t)
+    away = np.ones(result.t.size, dtype=bool)
+    for switch in model.switch_times:
+        away &= np.abs(result.t - switch) > 0.05
+    away[0] = False  # z_0 is not used by implicit Euler
+    # λ follows z = Δx/h of a first-order scheme: O(h) off the exact selection
+    assert np.max(np.abs(result.selections[away] - exact[away])) <= 0.02
+
+
+def test_the_stop_then_stick_block_as_a_boundary_value_problem(results):
+    """v(0) = 2 and p(3) = 1 given, p(0) free: the solver finds p(0) = 0 (to O(h))."""
+    for nodes in NODES:
+        result = results["block-stop-stick-bvp", nodes]
+        assert abs(result.x[-1, 0] - 1.0) <= 1e-8
+        assert abs(result.x[0, 0]) <= 3.0 / (nodes - 1) * 1.01
+
+
+def test_bench_rows_report_order_and_residual():
+    rows = run_suite(("block-stop-stick",), (101, 1001))
+    assert [r.status for r in rows] == ["solved", "solved"] and rows[0].order is None
+    assert rows[1].order == pytest.approx(1.0, abs=0.05) and rows[1].residual <= 1e-8 * 2
