@@ -2,12 +2,13 @@
 
     python examples/compare_directions.py [--models paper-7.1 paper-7.2 paper-7.3]
                                           [--nodes 11 101 1001] [--directions native gauss-newton]
-                                          [--continuation auto|none]
+                                          [--continuation auto|none] [--scheme NAME] [--signs exact|band]
 
 Prints a Markdown table. Each run uses the direction's defaults (line search: golden for
 native, armijo for gauss-newton; grids: native starts on coarse ones, 11, 101, … below N),
 tol 1e-10, the paper's δ = 1e-3, ε = 1e-2, γ̄ = 1 and at most 500 iterations over all
-grids; "reached" is the first iteration on the final grid with I ≤ 1e-3 and boundary
+grids, each model's scheme (implicit Euler; the trapezoid rule for 7.1 and 7.2) and
+exact sign selections unless --scheme / --signs say otherwise; "reached" is the first iteration on the final grid with I ≤ 1e-3 and boundary
 error ≤ 5e-3 (the paper's accuracy).
 """
 
@@ -25,6 +26,8 @@ def main() -> None:
     parser.add_argument("--directions", nargs="+", default=["native", "gauss-newton"])
     parser.add_argument("--max-iter", type=int, default=500)
     parser.add_argument("--continuation", choices=["auto", "none"], help="default: each direction's")
+    parser.add_argument("--scheme", help="default: each model's")
+    parser.add_argument("--signs", choices=["exact", "band"], default="exact")
     args = parser.parse_args()
     print("| model | N | direction | status | iterations | reached paper accuracy at | time (s) | I "
           "| objective | boundary error | inclusion residual |")
@@ -34,7 +37,7 @@ def main() -> None:
         for nodes in args.nodes:
             for direction in args.directions:
                 r = qdframe.solve(model, nodes=nodes, direction=direction, max_iter=args.max_iter,
-                                  continuation=args.continuation)
+                                  continuation=args.continuation, scheme=args.scheme, signs=args.signs)
                 reached = next((h.iteration for h in r.history
                                 if h.nodes == nodes and h.I <= 1e-3 and h.boundary_error <= 5e-3), "—")
                 print(f"| {name} | {nodes} | {direction} | {r.status} | {r.iterations} | {reached} "
