@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sign terms a·Sgn(s): exact selections λ ∈ Sgn(s) (default) or the C¹ band")
     solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
     solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
-                       help="`solved` needs every pointwise residual ≤ this × max(1, max|x|) (default 1e-8)")
+                       help="`solved` needs every pointwise residual ≤ this (default 1e-8)")
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")

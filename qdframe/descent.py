@@ -31,7 +31,7 @@ class DescentOptions:
     delta: float = 1e-3
     eps: float = 1e-2
     gamma_max: float = 1.0
-    residual_tol: float = 1e-8  # pointwise, relative to max(1, max|x|): see :func:`pointwise_excess`
+    residual_tol: float = 1e-8  # pointwise, absolute: see :func:`pointwise_excess`
 
     def __post_init__(self) -> None:
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
@@ -278,11 +278,11 @@ def pointwise_excess(functional: Functional, xi: np.ndarray, residual_tol: float
 
     Every residual — the boundary error, max_k dist(z_k, F(y_k)) (with the selections),
     max |λ − clip(λ + s, −1, 1)| (λ ∈ Sgn(s)), the consistency max |x − x0 − ∫z| and the
-    surface error — must be ≤ residual_tol·max(1, max|x|). A small I alone is not enough:
-    it weighs node k by w_k and so allows √(2I/w_k) there.
+    surface error — must be ≤ residual_tol. A small I alone is not enough: it weighs node k
+    by w_k and so allows √(2I/w_k) there.
     """
     residuals = functional.residuals(xi)
-    bound = residual_tol * max(1.0, float(np.max(np.abs(functional.split(xi)[0]))))
+    bound = residual_tol
     checks = [
         ("boundary error", residuals.boundary_error),
         ("inclusion residual", residuals.inclusion_residual),

@@ -225,7 +225,7 @@ def determinism() -> HardCase:
 
 
 def friction_suite() -> HardCase:
-    """The stick/slide/switch suite at N = 101 from the default start: solved, strict residual ≤ 1e-8·scale."""
+    """The stick/slide/switch suite at N = 101 from the default start: solved, strict residual ≤ 1e-8."""
     from .benchmarks.friction import SUITE, run_suite
 
     rows = run_suite(SUITE, (101,))
