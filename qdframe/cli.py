@@ -259,7 +259,7 @@ def _bench_friction(args: argparse.Namespace) -> int:
 
     rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,))
     print(friction.table(rows))
-    return 0 if all(r.status == "solved" for r in rows) else 1
+    return 0  # a measurement: the table says which rows are not solved
 
 
 def _bench_hard() -> int:
