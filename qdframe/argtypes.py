@@ -95,3 +95,11 @@ def names(text: str) -> list[str]:
     if not found:
         raise argparse.ArgumentTypeError(f"expected comma-separated names like a,b, got {text!r}")
     return found
+
+
+def key_value(text: str) -> tuple[str, str]:
+    """KEY=VALUE (the value's type is the option's: checked where it is applied)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip().isidentifier():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE like mu=1e-8, got {text!r}")
+    return key.strip(), value.strip()

@@ -11,7 +11,7 @@ Instances (each a batch of min-norm QPs exactly as a direction solves them):
   (so the minimum-norm point is 0), and random rows scaled by 1e-8 and by 1e8.
 
 Every installed backend — each registered `MinNormDirection`, with ``qpsolvers:`` expanded
-to every solver qpsolvers finds installed — solves every instance once untimed (building
+to every supported solver qpsolvers finds installed — solves every instance once untimed (building
 its solvers) and then `repeat` timed passes over all instances in order (so warm starts
 come from the previous, different, instance of the same shape, as in a descent). The
 reference is the native solver (exact). Reported per backend: the median wall time of one
@@ -149,13 +149,15 @@ def installed_directions(names: list[str] | None = None) -> tuple[dict[str, MinN
 
 
 def _expand(prefix: str) -> list[str]:
-    """`qpsolvers:` → every solver qpsolvers finds installed."""
+    """`qpsolvers:` → every supported solver qpsolvers finds installed."""
     if prefix == "qpsolvers:":
         try:
             import qpsolvers
         except ImportError:
             return [prefix + "daqp"]  # reported as skipped, with the pip command
-        return [prefix + name for name in sorted(qpsolvers.available_solvers)]
+        from .directions.qpsolvers_backend import offered_solvers
+
+        return [prefix + name for name in offered_solvers(qpsolvers)]
     return []
 
 

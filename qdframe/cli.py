@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .argtypes import boundary_vector, continuation, finite_float, integer, names, node_counts, positive_float, vector
+from .argtypes import (
+    boundary_vector, continuation, finite_float, integer, key_value, names, node_counts, positive_float, vector,
+)
 from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
@@ -32,21 +34,10 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         raise _UsageError(f"{self.prog}: error: {message}")
 
-
-
-
-
-
-
-
-
-
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="qdframe", description="Trajectories of nonsmooth differential inclusions.")
     parser.add_argument("--version", action="version", version=f"qdframe {__version__}")
-    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks (anywhere on the command line)")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     lister = commands.add_parser("list", help="registered models, directions and line searches")
@@ -56,6 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("model", help="model name (see `qdframe list`)")
     solve.add_argument("--direction", default="gauss-newton",
                        help="direction solver (default: gauss-newton; the paper's method: native)")
+    solve.add_argument("--option", action="append", type=key_value, metavar="KEY=VALUE",
+                       help="set a direction option, e.g. --option mu=1e-8 (repeatable; unknown keys list the known)")
     solve.add_argument("--line-search", help="line search (default: the direction's: armijo for gauss-newton, golden for native)")
     solve.add_argument("--nodes", type=integer(2), default=101, help="grid nodes N ≥ 2 (default 101)")
     solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
@@ -118,10 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    debug = "--debug" in argv
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in argv  # a global option, accepted anywhere on the line
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser().parse_args([a for a in argv if a != "--debug"])
         if args.command == "list":
             return _list(args)
         if args.command == "simulate":
@@ -177,7 +170,8 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _solve(args: argparse.Namespace) -> int:
-    from .descent import load_model, solve
+    from .descent import load_model, make_direction, solve
+    from .directions.base import with_options
 
     for flag in ("json", "plot"):
         if getattr(args, flag):
@@ -188,7 +182,7 @@ def _solve(args: argparse.Namespace) -> int:
     result = solve(
         model,
         nodes=args.nodes,
-        direction=args.direction,
+        direction=with_options(make_direction(args.direction), dict(args.option or ())),
         line_search=args.line_search,
         max_iter=args.max_iter,
         tol=args.tol,
@@ -251,7 +245,10 @@ def _bench_directions(args: argparse.Namespace) -> int:
         write_json(report, args.json)
     if not args.quiet:
         print(format_table(report))
-    return 0
+    failed = [row["direction"] for row in report["rows"] if row["failures"]]
+    if failed:
+        print(f"qdframe: error: failed calls by {', '.join(failed)} (see the table)", file=sys.stderr)
+    return 1 if failed else 0
 
 
 def _bench_friction(args: argparse.Namespace) -> int:

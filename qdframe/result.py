@@ -83,7 +83,7 @@ class SolveResult:
             ("model", self.model),
             ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
             ("direction / line search", f"{self.direction} / {self.line_search}"),
-            ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []))),
+            ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []), self.nodes)),
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),
@@ -104,7 +104,9 @@ class SolveResult:
         return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 
 
-def _grids(grids: list[int]) -> str:
+def _grids(grids: list[int], nodes: int) -> str:
+    if grids and grids[-1] != nodes:  # ended on a coarser grid (a failure there)
+        return f"  (ended on this grid; {grids[-1]} requested)"
     return f"  (continued from {', '.join(map(str, grids[:-1]))})" if len(grids) > 1 else ""
 
 

@@ -12,6 +12,7 @@ follow the paper subclass :class:`MinNormDirection` and implement only
 
 from __future__ import annotations
 
+import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
@@ -104,3 +105,44 @@ class MinNormDirection(DirectionSolver):
         step = -points.reshape(nodes, count, dim)[rows, worst]
         deviation = distance[rows, worst]
         return Direction(step=step, deviation=deviation, slope=qd.directional_derivative(step, weights))
+
+
+def with_options(solver: DirectionSolver, options: dict[str, str]) -> DirectionSolver:
+    """A copy of `solver` with public dataclass fields set from text (the CLI's
+    ``--option KEY=VALUE``): each value is parsed as the field's current type (bool,
+    int, float or str). An unknown key or a value of the wrong form is an InputError."""
+    from ..errors import InputError
+
+    if not options:
+        return solver
+    scalar = (bool, int, float, str, type(None))
+    fields = {f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)
+              if f.init and not f.name.startswith("_") and isinstance(getattr(solver, f.name), scalar)} \
+        if dataclasses.is_dataclass(solver) else {}
+    values = {}
+    for key, text in options.items():
+        if key not in fields:
+            form = f"KEY=VALUE with KEY one of: {', '.join(fields)}" if fields else "no options (this direction has none)"
+            raise InputError("--option", form, f"{key}={text}")
+        current = fields[key]
+        kind = type(current) if isinstance(current, (bool, int, float, str)) else None
+        try:
+            if kind is bool:
+                if text.lower() not in ("true", "false", "1", "0"):
+                    raise ValueError
+                values[key] = text.lower() in ("true", "1")
+            elif kind is None:
+                values[key] = None if text.lower() == "none" else _number(text)
+            else:
+                values[key] = kind(text)
+        except ValueError:
+            expected = {bool: "true or false", int: "an integer", float: "a number", str: "text"}.get(kind, "a number or none")
+            raise InputError("--option", f"{key}=<{expected}>", f"{key}={text}") from None
+    return dataclasses.replace(solver, **values)
+
+
+def _number(text: str) -> int | float:
+    try:
+        return int(text)
+    except ValueError:
+        return float(text)

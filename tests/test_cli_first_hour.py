@@ -1,0 +1,60 @@
+"""The command line as a new user meets it: global options where the README shows them,
+direction options, only backends that work, honest summaries."""
+
+from __future__ import annotations
+
+import pytest
+
+from qdframe.cli import main
+from qdframe.descent import make_direction
+from qdframe.directions.base import with_options
+from qdframe.errors import InputError
+from qdframe.result import _grids
+
+
+def test_debug_is_accepted_after_the_subcommand(capsys):
+    assert main(["solve", "no-such-model"]) == 2  # one line
+    assert "no-such-model" in capsys.readouterr().err
+    with pytest.raises(InputError):  # --debug: the traceback, wherever the flag stands
+        main(["solve", "no-such-model", "--debug"])
+    with pytest.raises(InputError):
+        main(["--debug", "solve", "no-such-model"])
+
+
+def test_option_sets_a_direction_field():
+    solver = with_options(make_direction("gauss-newton"), {"mu": "1e-6", "mu_max": "10"})
+    assert solver.mu == 1e-6 and solver.mu_max == 10.0 and isinstance(solver.mu_max, float)
+    assert make_direction("gauss-newton").mu != 1e-6  # a copy: the registry's class is untouched
+
+
+@pytest.mark.parametrize("options, expected", [
+    ({"nope": "1"}, "KEY one of: mu, mu_min, mu_max"),
+    ({"mu": "abc"}, "mu=<a number>"),
+])
+def test_option_errors_name_the_field_and_the_form(options, expected):
+    with pytest.raises(InputError, match="--option") as info:
+        with_options(make_direction("gauss-newton"), options)
+    assert expected in str(info.value)
+
+
+def test_option_on_the_command_line(capsys):
+    assert main(["solve", "paper-7.1", "--nodes", "11", "--option", "mu=1e-6", "--quiet"]) == 0
+    assert main(["solve", "paper-7.1", "--option", "mu"]) == 2
+    assert "KEY=VALUE" in capsys.readouterr().err
+    assert main(["solve", "paper-7.1", "--option", "bad=1"]) == 2
+
+
+def test_a_qpsolvers_solver_that_fails_is_not_offered(capsys):
+    qpsolvers = pytest.importorskip("qpsolvers")
+    from qdframe.directions.qpsolvers_backend import NOT_OFFERED, offered_solvers
+
+    assert "highs" not in offered_solvers(qpsolvers) and "highs" in NOT_OFFERED
+    assert main(["solve", "paper-7.1", "--direction", "qpsolvers:highs"]) == 2
+    err = capsys.readouterr().err
+    assert "highs is not offered" in err and "daqp" in err
+
+
+def test_the_summary_says_when_a_solve_ended_on_a_coarser_grid():
+    assert _grids([11, 101], 11) == "  (ended on this grid; 101 requested)"
+    assert _grids([11, 101], 101) == "  (continued from 11)"
+    assert _grids([101], 101) == ""
