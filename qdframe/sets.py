@@ -270,9 +270,23 @@ class Point(Set):
 
 
 class Interval(Set):
-    """The segment [lo(y), hi(y)] (co{lo, hi}; endpoints in either order): c = max{lo·ψ, hi·ψ}."""
+    """The segment [lo(y), hi(y)] (co{lo, hi}; endpoints in either order): c = max{lo·ψ, hi·ψ}.
+
+    ``Interval(Min(e_1, …, e_m), Max(e_1, …, e_m))`` is the hull co{e_1, …, e_m}
+    (:func:`hull`), the paper's [min, max] velocity range (Section 5)."""
+
+    def __new__(cls, lo: Any = None, hi: Any = None) -> "Set":
+        ends = [_expr(v, "Interval end") if isinstance(v, (sp.Basic, int, float)) else None for v in (lo, hi)]
+        if isinstance(ends[0], sp.Min) and isinstance(ends[1], sp.Max) and set(ends[0].args) == set(ends[1].args):
+            return Hull(*ends[0].args)  # [min e_i, max e_i] = co{e_i}
+        return super().__new__(cls)
 
     def __init__(self, lo: Any, hi: Any) -> None:
+        for end, where in ((lo, "Interval lower end"), (hi, "Interval upper end")):
+            if isinstance(end, sp.Basic) and end.has(sp.Min, sp.Max):
+                raise SetStructureError(
+                    where, "a continuously differentiable formula; for the range [min e_i, max e_i] write "
+                    "hull(e_1, …, e_m) (or Interval(Min(e_1, …), Max(e_1, …)) with the same e_i)", _s(end))
         self.lo, self.hi = _smooth(lo, "Interval lower end"), _smooth(hi, "Interval upper end")
         if self.lo.is_number and self.hi.is_number and self.lo > self.hi:
             raise SetStructureError(f"Interval({self.lo}, {self.hi})", "lo ≤ hi for constant ends")

@@ -228,3 +228,24 @@ def test_controls_and_surfaces_compile_with_gradients_in_y():
     assert e.shape == (1, 1) and np.allclose(de, [[[1.0, 1.0]]])
     f, jac = compiled.blocks[0].max_groups[0].pieces(np.array([[1.0, 2.0, 3.0]]))
     assert f[0, 0, 0] == 5.0 and np.allclose(jac[0, 0, 0], [0.0, 1.0, 1.0])
+
+
+def test_interval_of_min_and_max_of_the_same_formulas_is_their_hull():
+    import sympy
+
+    from qdframe.sets import Hull, Interval, hull
+
+    x1, x2, x3 = sympy.symbols("x1 x2 x3")
+    spelled = Interval(sympy.Min(x1, x2, x3), sympy.Max(x3, x2, x1))
+    assert isinstance(spelled, Hull)
+    assert spelled.polytope() == hull(x1, x2, x3).polytope()
+
+
+def test_interval_with_a_kinked_end_points_to_hull():
+    import sympy
+
+    from qdframe.sets import Interval
+
+    x1, x2, x3 = sympy.symbols("x1 x2 x3")
+    with pytest.raises(SetStructureError, match=r"hull\(e_1, …, e_m\)"):
+        Interval(sympy.Min(x1, x2), sympy.Max(x2, x3))
