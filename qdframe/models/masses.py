@@ -71,10 +71,25 @@ class Paper73(InclusionModel):
     # band inf; the surface term ω enforces x4 = 0, where this is exact.
     surface_band = float("inf")
 
+    _x0: np.ndarray | None = None  # None: the reaching phase's end, simulated at first use
+
     def __init__(self, T=None, x0=None, end_values=None) -> None:
+        """Without `x0`, x(0) is the end of the reaching phase, simulated (once per process,
+        about 2 s) when x0 is first read, by a solve or a check, not here: loading stays fast."""
+        super().__init__(T, (float("nan"),) * len(self.state_names) if x0 is None else x0, end_values)
         if x0 is None:
-            x0 = reaching_phase_end()
-        super().__init__(T, x0, end_values)
+            self._x0 = None
+
+    @property
+    def x0(self) -> np.ndarray:
+        """x(0), (6,): the given one, or the end of the reaching phase (:func:`reaching_phase_end`)."""
+        if self._x0 is None:
+            self._x0 = np.array(reaching_phase_end())
+        return self._x0
+
+    @x0.setter
+    def x0(self, value: np.ndarray) -> None:
+        self._x0 = value
 
     def blocks(self) -> tuple[SetBlock, ...]:
         beta = self.band
@@ -113,7 +128,8 @@ class Paper73Reduced(Paper73):
 
 @lru_cache(maxsize=1)
 def reaching_phase_end() -> tuple[float, ...]:
-    """x(0) after the reaching phase [−0.2, 0] with u = 0 (Filippov simulation)."""
+    """x(0) after the reaching phase [−0.2, 0] with u = 0 (Filippov simulation), computed
+    at its first call and cached: :class:`Paper73` asks for it when its x0 is first read."""
     from ..simulate import simulate
 
     model = Paper73(x0=REACHING_START)
