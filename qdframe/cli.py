@@ -21,7 +21,7 @@ from .argtypes import (
 from .benchmarks.cli import add_run_parser, main_run
 from .check import add_check_parser, main_check
 from .errors import InputError, QdframeError
-from .registry import GROUPS, KIND_LABEL, available
+from .registry import GROUPS, KIND_LABEL, PluginWarning, available
 
 
 class _UsageError(Exception):
@@ -113,6 +113,21 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv  # a global option, accepted anywhere on the line
+    with warnings.catch_warnings():  # a broken plugin: one line, once
+        warnings.simplefilter("once", PluginWarning)
+        show = warnings.showwarning
+
+        def one_line(message, category, *args, **kwargs) -> None:
+            if issubclass(category, PluginWarning):
+                print(f"qdframe: warning: {message}", file=sys.stderr)
+            else:
+                show(message, category, *args, **kwargs)
+
+        warnings.showwarning = one_line
+        return _main(argv, debug)
+
+
+def _main(argv: list[str], debug: bool) -> int:
     try:
         args = build_parser().parse_args([a for a in argv if a != "--debug"])
         if args.command == "list":
@@ -142,17 +157,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        listing = {
-            kind: [
-                {"name": e.name, "distribution": e.distribution, "description": e.description}
-                for e in sorted(available(kind).values(), key=lambda e: e.name)
-            ]
-            for kind in GROUPS
-        }
-    for warning in caught:
-        print(f"qdframe: warning: {warning.message}", file=sys.stderr)
+    listing = {
+        kind: [
+            {"name": e.name, "distribution": e.distribution, "description": e.description}
+            for e in sorted(available(kind).values(), key=lambda e: e.name)
+        ]
+        for kind in GROUPS
+    }
     if args.json is not None:
         text = json.dumps(listing, indent=1)
         if args.json == "-":

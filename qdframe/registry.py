@@ -64,7 +64,8 @@ def _points(kind: str) -> dict[str, EntryPoint]:
             if found[ep.name].value != ep.value:
                 warnings.warn(
                     f"{KIND_LABEL[kind]} {ep.name!r} from {_distribution(ep)} is shadowed by the one from "
-                    f"{_distribution(found[ep.name])}",
+                    f"{_distribution(found[ep.name])}; rename it in {_distribution(ep)}'s entry points "
+                    f"(then reinstall it) or pip uninstall {_distribution(ep)}",
                     PluginWarning,
                     stacklevel=4,
                 )
@@ -83,7 +84,7 @@ def _load(kind: str, name: str) -> Entry | None:
     except Exception as exc:  # a broken plugin must not break qdframe
         warnings.warn(
             f"could not load {KIND_LABEL[kind]} {ep.name!r} from distribution {dist} "
-            f"({ep.value}): {type(exc).__name__}: {exc}",
+            f"({ep.value}): {type(exc).__name__}: {exc}; fix that module (then reinstall {dist}) or pip uninstall {dist}",
             PluginWarning,
             stacklevel=4,
         )

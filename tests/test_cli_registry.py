@@ -102,3 +102,27 @@ def test_an_unwritable_plot_path_is_a_usage_error_not_a_traceback(capsys):
     assert main(["solve", "paper-7.2", "--nodes", "5", "--plot", "/proc/qdframe-test.png"]) == 2
     err = capsys.readouterr().err
     assert "--plot" in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_a_broken_plugin_is_one_line_once_in_check_model_and_list(tmp_path, monkeypatch, capsys):
+    info = tmp_path / "broken_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: broken-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[qdframe.models]\nbroken = no_such_module_xyz:Model\npaper-7.1 = no_such_module_xyz:Other\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    registry.refresh()
+    try:
+        assert main(["list"]) == 0
+        assert main(["solve", "paper-7.1", "--nodes", "11", "--quiet"]) == 0
+        err = capsys.readouterr().err
+        lines = err.splitlines()
+        assert all(line.startswith("qdframe: warning: ") for line in lines) and "Traceback" not in err
+        loading = [line for line in lines if "could not load" in line]
+        assert len(loading) == 1 and "pip uninstall broken-plugin" in loading[0]
+        shadowed = [line for line in lines if "is shadowed" in line]
+        assert shadowed and all("pip uninstall broken-plugin" in line for line in shadowed)
+    finally:
+        monkeypatch.undo()
+        registry.refresh()
