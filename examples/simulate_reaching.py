@@ -2,8 +2,13 @@
 
 From x(−0.2) = (−1, 1, −1, −1, 1, 1) with u = 0 the trajectory reaches x4 = 0 and then
 slides on it; its end is the x(0) of paper-7.3 (the paper's rounded numbers:
-−1.053, 1.099, −0.787, 0, 0.026, 1.119). Writes reaching-phase.png.
+−1.053, 1.099, −0.787, 0, 0.026, 1.119). Writes reaching-phase.png into --out (default .).
+
+    python examples/simulate_reaching.py [--out DIR]
 """
+
+import argparse
+from pathlib import Path
 
 import matplotlib
 
@@ -12,6 +17,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import qdframe  # noqa: E402
 from qdframe.simulate import simulate  # noqa: E402
+
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("--out", type=Path, default=Path("."), help="output folder (created; default: the current one)")
+out = parser.parse_args().out
+out.mkdir(parents=True, exist_ok=True)
 
 start = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
 model = qdframe.load_model("paper-7.3", x0=start)
@@ -23,4 +33,5 @@ for i, name in enumerate(run.state_names):
     ax.plot(run.t, run.x[:, i], label=name)
 ax.set(xlabel="t", title="reaching phase: x4 hits the surface x4 = 0 and slides")
 ax.legend(ncol=3)
-fig.savefig("reaching-phase.png", dpi=110)
+fig.savefig(out / "reaching-phase.png", dpi=110)
+print(f"wrote {out / 'reaching-phase.png'}")

@@ -1,13 +1,23 @@
-"""Solve Example 7.1 from Python, read the result, write JSON and a figure."""
+"""Solve Example 7.1 from Python, read the result, write JSON and a figure.
+
+    python examples/solve_paper.py [--out DIR]    (DIR: where the files go; default .)
+"""
+
+import argparse
+from pathlib import Path
 
 import qdframe
+from qdframe.plotting import plot_result
+
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("--out", type=Path, default=Path("."), help="output folder (created; default: the current one)")
+out = parser.parse_args().out
+out.mkdir(parents=True, exist_ok=True)
 
 model = qdframe.load_model("paper-7.1")
 result = qdframe.solve(model, nodes=101, direction="native", line_search="golden")
 print(result.summary())
 print("x1 stays near 0:", abs(result.x[:, 0]).max())
-result.to_json("paper-7.1.json")
-
-from qdframe.plotting import plot_result  # noqa: E402
-
-plot_result(result, "paper-7.1.png")
+result.to_json(out / "paper-7.1.json")
+plot_result(result, out / "paper-7.1.png")
+print(f"wrote {out / 'paper-7.1.json'} and {out / 'paper-7.1.png'}")
