@@ -1,4 +1,4 @@
-"""The `qdframe` command (DESIGN.md §5): `list`, `solve` and `simulate`.
+"""The `qdframe` command (README, "The command line"): `list`, `solve` and `simulate`.
 
 Bad input ends with one line naming the field and the expected form: exit status 2
 for usage errors, 1 for failures, and a traceback only with --debug.
@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
     solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
                        help="`solved` needs every pointwise residual ≤ this (default 1e-8)")
-    solve.add_argument("--json", metavar="FILE", help="write the result as JSON")
+    solve.add_argument("--json", metavar="FILE", help="write the result as JSON (- : to stdout, the summary to stderr)")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
@@ -184,12 +184,16 @@ def _solve(args: argparse.Namespace) -> int:
     from .descent import load_model, make_direction, solve
     from .directions.base import with_options
 
+    to_stdout = args.json == "-"  # the JSON alone on stdout; the summary goes to stderr
     for flag in ("json", "plot"):
-        if getattr(args, flag):
+        if getattr(args, flag) and not (flag == "json" and to_stdout):
             _writable(f"--{flag}", getattr(args, flag))
     overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic}
     model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
     show_progress = not args.quiet and sys.stderr.isatty()
+    if show_progress:  # before the first iteration: a slow first evaluation is not a hang
+        print(f"solving {model.name} on {args.nodes} nodes with {args.direction}, budget {args.max_iter} iterations …",
+              end="", file=sys.stderr, flush=True)
     result = solve(
         model,
         nodes=args.nodes,
@@ -201,7 +205,7 @@ def _solve(args: argparse.Namespace) -> int:
         eps=args.eps,
         gamma_max=args.gamma_max,
         continuation=args.continuation,
-        progress=_progress_printer() if show_progress else None,
+        progress=_progress_printer(args.max_iter) if show_progress else None,
         scheme=args.scheme,
         signs=args.signs,
         selection_scale=args.selection_scale,
@@ -210,7 +214,9 @@ def _solve(args: argparse.Namespace) -> int:
     if show_progress:
         print(file=sys.stderr)
     try:
-        if args.json:
+        if to_stdout:
+            print(result.to_json())
+        elif args.json:
             result.to_json(args.json)
         if args.plot:
             from .plotting import plot_result
@@ -219,7 +225,7 @@ def _solve(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise QdframeError(f"could not write the output: {exc}") from None
     if not args.quiet:
-        print(result.summary())
+        print(result.summary(), file=sys.stderr if to_stdout else sys.stdout)
     return 1 if result.status == "failed" else 0
 
 
@@ -265,7 +271,7 @@ def _bench_directions(args: argparse.Namespace) -> int:
 def _bench_friction(args: argparse.Namespace) -> int:
     from .benchmarks import friction
 
-    rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,))
+    rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,), progress=True)
     print(friction.table(rows))
     return 0  # a measurement: the table says which rows are not solved
 
@@ -273,16 +279,18 @@ def _bench_friction(args: argparse.Namespace) -> int:
 def _bench_hard() -> int:
     from . import hard
 
-    results = hard.run()
+    results = hard.run(progress=True)
     print(hard.table(results))
     return 0 if all(r.passed for r in results) else 1
 
 
-def _progress_printer():
+def _progress_printer(budget: int):
+    """One line on stderr, rewritten per iteration: elapsed time and the budget left."""
+
     def show(record) -> None:
         print(
-            f"\riteration {record.iteration:5d}   objective {record.objective:.3e}   "
-            f"I {record.I:.3e}   step {record.step:.2e}   N {record.nodes}",
+            f"\r\033[Kiteration {record.iteration:5d} of {budget}   {record.time_s:7.2f} s   "
+            f"objective {record.objective:.3e}   I {record.I:.3e}   step {record.step:.2e}   N {record.nodes}",
             end="",
             file=sys.stderr,
             flush=True,

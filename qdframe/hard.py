@@ -18,6 +18,7 @@ from .directions.native import NativeDirection
 from .functional import Functional
 from .grid import Grid
 from .model import InclusionModel, MaxGroup, MinGroup, SetBlock
+from .progress import bar
 from .quasidifferential import Quasidifferential, SimplexSum
 
 
@@ -242,13 +243,15 @@ CASES: tuple[Callable[[], HardCase], ...] = (
 )
 
 
-def run(cases=CASES) -> list[HardCase]:
-    """Run every case, timing each."""
+def run(cases=CASES, progress: bool = False) -> list[HardCase]:
+    """Run every case, timing each; `progress`: a bar on stderr (on a terminal)."""
     results = []
-    for case in cases:
-        start = time.perf_counter()
-        result = case()
-        results.append(HardCase(result.name, result.measured, result.passed, time.perf_counter() - start))
+    with bar(len(cases), "bench hard", enabled=progress) as runs:
+        for case in cases:
+            start = time.perf_counter()
+            result = case()
+            results.append(HardCase(result.name, result.measured, result.passed, time.perf_counter() - start))
+            runs.update(1)
     return results
 
 

@@ -58,3 +58,12 @@ def test_the_summary_says_when_a_solve_ended_on_a_coarser_grid():
     assert _grids([11, 101], 11) == "  (ended on this grid; 101 requested)"
     assert _grids([11, 101], 101) == "  (continued from 11)"
     assert _grids([101], 101) == ""
+
+
+def test_json_to_stdout_keeps_stdout_clean(capsys):
+    import json
+
+    assert main(["solve", "paper-7.2", "--nodes", "11", "--json", "-"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["model"] == "paper-7.2"  # stdout is the JSON alone
+    assert "status" in err  # the summary went to stderr

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ..descent import load_model, solve
+from ..progress import bar
 
 SUITE = (
     "block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
@@ -36,13 +37,17 @@ class SuiteRow:
 
 
 def run_suite(models: Sequence[str] = SUITE, nodes: Sequence[int] = (101, 1001, 10001),
-              schemes: Sequence[str | None] = (None,), direction: str = "gauss-newton") -> list[SuiteRow]:
-    """Solve every model on every grid with every scheme (None: the model's own), from the default start."""
+              schemes: Sequence[str | None] = (None,), direction: str = "gauss-newton",
+              progress: bool = False) -> list[SuiteRow]:
+    """Solve every model on every grid with every scheme (None: the model's own), from the default
+    start; `progress`: a bar on stderr (on a terminal)."""
     rows: list[SuiteRow] = []
+    runs = bar(len(models) * len(schemes) * len(nodes), "bench friction", enabled=progress)
     for name in models:
         for scheme in schemes:
             previous: SuiteRow | None = None
             for count in nodes:
+                runs.set_postfix_str(f"{name} N={count}")
                 model = load_model(name)
                 start = time.perf_counter()
                 result = solve(model, nodes=count, scheme=scheme, direction=direction)
@@ -55,6 +60,8 @@ def run_suite(models: Sequence[str] = SUITE, nodes: Sequence[int] = (101, 1001, 
                                residual, result.solution_error, order)
                 rows.append(row)
                 previous = row
+                runs.update(1)
+    runs.close()
     return rows
 
 

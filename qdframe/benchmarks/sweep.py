@@ -23,6 +23,7 @@ import json
 import math
 import os
 import platform
+import sys
 import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
@@ -37,6 +38,7 @@ from ..errors import InputError, QdframeError, UnknownNameError
 from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
+from ..progress import bar
 from ..registry import available, lookup
 from .models import BENCH_MODELS
 from .peers import PEER_MODELS, run_nosnoc
@@ -634,16 +636,23 @@ def run_sweep(
         say(f"resume: {'/'.join(map(str, key))} was in only one of results.json and results.csv: run again")
     start = time.perf_counter()
     count = [0]
+    runs = bar(len(pending), "bench run", enabled=progress is not None)
 
     def record(row: dict) -> None:
         store.add(row, order)
         count[0] += 1
         error = row.get("error")
-        say(f"[{count[0]}/{len(pending)}] {row['model']} {row['direction']}/{row['line_search']} N={row['nodes']}: "
-            f"{row['status']}, {row['iterations']} it, {_fmt_seconds(row.get('wall_time_s'))}, "
-            f"error {'—' if error is None else f'{error:.1e}'}")
+        line = (f"[{count[0]}/{len(pending)}] {row['model']} {row['direction']}/{row['line_search']} N={row['nodes']}: "
+                f"{row['status']}, {row['iterations']} it, {_fmt_seconds(row.get('wall_time_s'))}, "
+                f"error {'—' if error is None else f'{error:.1e}'}")
+        if runs.disable:
+            say(line)
+        else:
+            runs.write(line, file=sys.stderr)
+            runs.update(1)
 
-    execute(pending, record, executor=executor, scheduler=scheduler, workers=workers)
+    with runs:
+        execute(pending, record, executor=executor, scheduler=scheduler, workers=workers)
     store.write(order)  # also when every run was already there: the settings of this call
     meta = {**store.meta, "updated_at": _now()}
     return SweepOutcome(store.ordered(order), count[0], resumed, sweep, time.perf_counter() - start, store.dropped, meta)
