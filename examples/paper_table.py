@@ -1,4 +1,4 @@
-"""Measure the paper's table (DESIGN.md §6) with the paper's own method.
+"""Measure what the paper reports for Examples 7.1 and 7.2 (its Section 7) with the paper's own method.
 
     python examples/paper_table.py [--nodes 11 101 1001] [--line-search golden] [--continuation auto|none]
 
