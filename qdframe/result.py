@@ -1,4 +1,4 @@
-"""The result of a solve and its JSON form (DESIGN.md §5)."""
+"""The result of a solve and its JSON form (README, "The command line")."""
 
 from __future__ import annotations
 
