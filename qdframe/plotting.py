@@ -1,57 +1,259 @@
-"""Figures of a result, like the paper's Figure 1: trajectories, z_i(t) against the
-bounds of F_i(x(t)), and the functional per iteration on a log scale."""
+"""Figures of a result, like the paper's Figure 1: the trajectories, x' = z against the set
+F(x(t)), and the functional per iteration on a log scale.
+
+:func:`plot_result` (and :meth:`SolveResult.plot <qdframe.result.SolveResult.plot>`)
+returns the Matplotlib Figure and saves it only when given a path:
+
+* left: x(t) by state name (and the unknown controls u(t), dashed);
+* middle: z(t) = x'(t), labelled x1′, x2′, …, with the interval [lo_i, hi_i] of every
+  one-coordinate set F_i(x(t)) shaded in its coordinate's color; for a block of k ≥ 2
+  coordinates (a ball, an intersection: ψ ∈ S_k) the norm |z_b(t)| against the model's
+  support value c(F_b(x(t)), z_b/|z_b|), which z_b ∈ F_b(x) keeps above |z_b|;
+* right: I (and the objective when the model has a cost) per iteration, a new stage
+  (the next grid of a continuation, or the exact-sign solve after its band start) marked.
+
+The trapezoid rule integrates the interval means (z_{k−1} + z_k)/2, x_k = x_{k−1} +
+h·(z_{k−1} + z_k)/2, and leaves the alternating mode z_k = (−1)^k·c of the nodal
+values free: so for a trapezoid result the middle panel shows the means at the interval
+midpoints (and the means of the bounds, which contain them), not the nodal zig-zag.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from .result import SolveResult
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
-def plot_result(result: SolveResult, path: str | Path) -> None:
-    """Write the figure of `result` to `path` (format from the suffix)."""
-    import matplotlib
+    from .model import InclusionModel
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+VELOCITY_MODES = ("auto", "nodes", "means")
+POINT_WIDTH = 1e-12  # relative: an interval [lo, hi] no wider than this is drawn as a point
 
-    n = len(result.state_names)
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), constrained_layout=True)
-    trajectories, velocities, history = axes
 
+def plot_result(
+    result: SolveResult,
+    path: str | Path | None = None,
+    *,
+    model: InclusionModel | None = None,
+    velocities: Literal["auto", "nodes", "means"] = "auto",
+    figsize: tuple[float, float] = (14.0, 4.4),
+    dpi: float = 100.0,
+) -> Figure:
+    """The three-panel figure of `result`; written to `path` when given (format from the
+    suffix: PNG, PDF, SVG, …, at `dpi`).
+
+    `model` gives the sets F_b of blocks of k ≥ 2 coordinates, whose support the middle
+    panel draws; by default the registered model of the result's name is loaded (only
+    for such blocks). Pass the model when it was built by hand or with other parameters.
+    `velocities`: "nodes" plots z_k at the nodes, "means" the interval means
+    (z_{k−1} + z_k)/2 at the midpoints, "auto" the means for the trapezoid rule (the
+    values it integrates) and the nodes otherwise.
+
+    With a path the figure is saved and not registered with pyplot (no window opens,
+    nothing to close); without one it is a pyplot figure: `plt.show()` shows it and a
+    notebook displays it.
+    """
+    if velocities not in VELOCITY_MODES:
+        from .errors import InputError
+
+        raise InputError("velocities", " or ".join(f'"{mode}"' for mode in VELOCITY_MODES), velocities)
+    if path is None:
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(figsize=figsize, layout="constrained")
+    else:
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=figsize, layout="constrained")
+    trajectories, velocity_axes, history = fig.subplots(1, 3)
+    _trajectories(trajectories, result)
+    scheme = result.options.get("scheme", "")
+    means = velocities == "means" or (velocities == "auto" and scheme == "trapezoid")
+    _velocities(velocity_axes, result, means, model)
+    _history(history, result)
+    grid = f"{result.nodes} nodes" + (f", {scheme}" if scheme else "")
+    count = f"{result.iterations} iteration" + ("" if result.iterations == 1 else "s")
+    fig.suptitle(f"{result.model}: {result.status} after {count} ({grid})")
+    if path is not None:
+        fig.savefig(path, dpi=dpi)
+    return fig
+
+
+def _colors() -> list[str]:
+    import matplotlib as mpl
+
+    return mpl.rcParams["axes.prop_cycle"].by_key()["color"]
+
+
+def _trajectories(ax: Axes, result: SolveResult) -> None:
+    """x(t) by state name, and the unknown controls u(t) dashed (paper Figure 4)."""
     for i, name in enumerate(result.state_names):
-        trajectories.plot(result.t, result.x[:, i], label=name)
-    title = "trajectories x(t)"
-    if result.u is not None:  # the unknown controls (paper Figure 4 shows u(t))
-        for j in range(result.u.shape[1]):
-            trajectories.plot(result.t, result.u[:, j], "k--", lw=1.2, label=f"u{j + 1}" if result.u.shape[1] > 1 else "u")
-        title = "trajectories x(t) and controls u(t)"
-    trajectories.set(title=title, xlabel="t")
-    trajectories.legend(ncol=2 if len(result.state_names) > 3 else 1, fontsize="small")
+        ax.plot(result.t, result.x[:, i], label=name)
+    ylabel = "state x(t)"
+    if result.u is not None:
+        m = result.u.shape[1]
+        for j in range(m):
+            ax.plot(result.t, result.u[:, j], "k--", lw=1.2, label=f"u{j + 1}" if m > 1 else "u")
+        ylabel = "state x(t), control u(t)"
+    ax.set(title="trajectories", xlabel="t", ylabel=ylabel)
+    ax.legend(ncol=2 if len(result.state_names) > 3 else 1, fontsize="small")
 
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i in range(n):
-        color = colors[i % len(colors)]
-        velocities.plot(result.t, result.z[:, i], color=color, label=f"z{i + 1}")
-    # bounds of the one-coordinate sets F_i(x(t)), colored as their coordinate
+
+def _velocities(ax: Axes, result: SolveResult, means: bool, model: InclusionModel | None) -> None:
+    """z = x' by state name against F(x(t)): intervals shaded, k-blocks by norm and support."""
+    from matplotlib.patches import Patch
+
+    colors = _colors()
+    names = result.state_names
+    t, z = np.asarray(result.t, float), np.asarray(result.z, float)
+    average = (lambda v: 0.5 * (v[1:] + v[:-1])) if means else (lambda v: v)
+    tt = average(t)
+    for i, name in enumerate(names):
+        ax.plot(tt, average(z[:, i]), color=colors[i % len(colors)], label=f"{name}′")
+    handles: list[Any] = []
+    points: list[str] = []  # coordinates whose F_i(x(t)) is a single point (an equation, a selection)
     for bounds in result.set_bounds:
         if bounds is None:
             continue
-        lower, upper = np.asarray(bounds["lower"]), np.asarray(bounds["upper"])
-        color = colors[bounds["coordinate"] % len(colors)]
-        velocities.fill_between(result.t, lower, upper, color=color, alpha=0.15, lw=0)
-        velocities.plot(result.t, lower, color=color, ls="--", lw=0.8)
-        velocities.plot(result.t, upper, color=color, ls=":", lw=0.8)
-    velocities.set(title="z(t) and the bounds of F(x(t))", xlabel="t")
-    velocities.legend()
+        lower, upper = average(np.asarray(bounds["lower"], float)), average(np.asarray(bounds["upper"], float))
+        i = bounds["coordinate"]
+        if np.all(upper - lower <= POINT_WIDTH * (1.0 + np.abs(upper))):
+            points.append(f"{names[i]}′")
+            continue
+        color = colors[i % len(colors)]
+        ax.fill_between(tt, lower, upper, color=color, alpha=0.18, lw=0)
+        ax.plot(tt, lower, color=color, ls="--", lw=0.8)
+        ax.plot(tt, upper, color=color, ls=":", lw=0.8)
+        handles.append(Patch(facecolor=color, alpha=0.35, edgecolor=color, ls="--",
+                             label=f"F_{i + 1}(x(t)) bounds of {names[i]}′ (-- lower, ·· upper)"))
+    notes = _block_supports(ax, result, means, model, colors)
+    if points:
+        notes.append(f"F_i(x(t)) a single point for {', '.join(points)}")
+    title = "velocities x′ = z"
+    if means:
+        title += ": interval means ½(z_{k−1} + z_k) (trapezoid)"
+    ax.set(title=title, xlabel="t" + (" (interval midpoints)" if means else ""), ylabel="z(t) = x′(t)")
+    lines, labels = ax.get_legend_handles_labels()
+    ax.legend(lines + handles, labels + [h.get_label() for h in handles],
+              ncol=2 if len(lines) + len(handles) > 6 else 1, fontsize="small",
+              title="\n".join(notes) or None, title_fontsize="x-small")
 
-    iterations = [h.iteration for h in result.history]
-    history.semilogy(iterations, [max(h.I, 1e-300) for h in result.history], marker=".", label="I")
+
+def _block_supports(ax: Axes, result: SolveResult, means: bool, model: InclusionModel | None,
+                    colors: list[str]) -> list[str]:
+    """For each block of k ≥ 2 coordinates: |z_b(t)| and, with the model, its support
+    c(F_b(x(t)), z_b/|z_b|) (≥ |z_b| when z_b ∈ F_b). Returns notes for the panel."""
+    missing = [b for b, bounds in enumerate(result.set_bounds) if bounds is None]
+    if not missing:
+        return []
+    model, why = _resolve_model(result, model)
+    blocks = list(model.blocks()) if model is not None else None
+    if blocks is not None and len(blocks) != len(result.set_bounds):
+        model, blocks, why = None, None, f"the model {result.model!r} loaded has other blocks than the result's"
+    t, x, z = (np.asarray(a, float) for a in (result.t, result.x, result.z))
+    y = x if result.u is None else np.concatenate([x, np.asarray(result.u, float)], axis=1)
+    notes = []
+    for b in missing:
+        coords = list(blocks[b].coords) if blocks is not None else _unbounded_coords(result)
+        label = "(" + ", ".join(f"{result.state_names[i]}′" for i in coords) + ")"
+        color = colors[(len(result.state_names) + b) % len(colors)]  # apart from the coordinates' colors
+        zb = z[:, coords]
+        if means:
+            zb = 0.5 * (zb[1:] + zb[:-1])
+        norm = np.linalg.norm(zb, axis=1)
+        tt = 0.5 * (t[1:] + t[:-1]) if means else t
+        ax.plot(tt, norm, color=color, lw=2.2, alpha=0.8, label=f"|{label}|")
+        if blocks is None:
+            notes.append(f"F on {label}: a set in R^{len(coords)}, its support not drawn\n({why}; pass model=)")
+            continue
+        support = _support(model, blocks[b], y, zb, means)
+        name = _set_name(blocks[b])
+        ax.plot(tt, support, color=color, ls="--", lw=1.4, label=f"c({name}, z/|z|)")
+        notes.append(f"F on {label} = {name}: z ∈ F gives |z| ≤ its support c along z")
+    return notes
+
+
+def _resolve_model(result: SolveResult, model: InclusionModel | None) -> tuple[InclusionModel | None, str]:
+    """The given model, else the registered one of the result's name (with a reason if none)."""
+    if model is not None:
+        return model, ""
+    from .descent import load_model
+    from .errors import QdframeError
+
+    try:
+        loaded = load_model(result.model)
+    except QdframeError as exc:
+        return None, f"no registered model {result.model!r}: {exc}"
+    if tuple(loaded.state_names) != tuple(result.state_names):
+        return None, f"the registered {result.model!r} has other states"
+    return loaded, ""
+
+
+def _unbounded_coords(result: SolveResult) -> list[int]:
+    """Without the model: the coordinates no one-coordinate bound covers."""
+    covered = {bounds["coordinate"] for bounds in result.set_bounds if bounds is not None}
+    return [i for i in range(len(result.state_names)) if i not in covered]
+
+
+def _set_name(block: Any) -> str:
+    groups = [group.name for group in (*block.max_groups, *block.min_groups)]
+    named = [g for g in groups if g not in ("max", "min")]
+    return " + ".join(named) if named else (block.name or "F")
+
+
+def _support(model: InclusionModel, block: Any, y: np.ndarray, zb: np.ndarray, means: bool) -> np.ndarray:
+    """c(F_b(y), ψ) at ψ = zb/|zb| (ψ = e_1 where z_b = 0), per node; with `means` the
+    mean of the two end nodes' values per interval, which bounds <z̄_b, ψ> = |z̄_b|."""
+    from .functional import Functional
+    from .grid import Grid
+
+    functional = Functional(model, Grid(float(model.T), 2))
+    norm = np.linalg.norm(zb, axis=1, keepdims=True)
+    psi = np.where(norm > 0, zb / np.where(norm > 0, norm, 1.0), np.eye(zb.shape[1])[0])
+
+    def value(rows: np.ndarray) -> np.ndarray:
+        zero = np.zeros((rows.shape[0], model.n_states))
+        return -functional._side(block, rows, zero, psi).ell
+
+    if means:
+        return 0.5 * (value(y[:-1]) + value(y[1:]))
+    return value(y)
+
+
+def _history(ax: Axes, result: SolveResult) -> None:
+    """I (and the objective) per iteration, log scale, integer ticks; each stage its own
+    line (a stage starts where the iteration number repeats), zeros marked at the bottom."""
+    from matplotlib.ticker import MaxNLocator
+
+    records = result.history
+    series = [("I", lambda h: h.I, "C0")]
     if result.cost is not None:
-        history.semilogy(iterations, [max(h.objective, 1e-300) for h in result.history], marker=".", label="objective")
-    history.set(title=f"{result.model}: {result.status} after {result.iterations} iterations", xlabel="iteration")
-    history.legend()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+        series.insert(0, ("objective", lambda h: h.objective, "C1"))
+    starts = [0] + [k for k in range(1, len(records)) if records[k].iteration <= records[k - 1].iteration]
+    stages = [records[a:b] for a, b in zip(starts, starts[1:] + [len(records)])]
+    zeros: list[int] = []
+    for label, get, color in series:
+        for s, stage in enumerate(stages):
+            values = np.array([get(h) for h in stage], float)
+            zeros += [h.iteration for h, v in zip(stage, values) if v == 0]
+            ax.semilogy([h.iteration for h in stage], np.where(values > 0, values, np.nan), marker=".",
+                        color=color, label=label if s == 0 else None)
+    for stage in stages[1:]:
+        first = stage[0]
+        ax.axvline(first.iteration, color="0.5", ls=":", lw=1)
+        ax.annotate(f" new stage, N = {first.nodes}", (first.iteration, 0.98), xycoords=("data", "axes fraction"),
+                    va="top", fontsize="x-small", color="0.35")
+    if zeros:
+        ax.plot(sorted(set(zeros)), [0.0] * len(set(zeros)), "v", color="k", transform=ax.get_xaxis_transform(),
+                clip_on=False, label="value 0 (off the log scale)")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set(title="functional per iteration", xlabel="iteration",
+           ylabel="objective, I" if result.cost is not None else "I = φ + χ + ω + υ + σ")
+    ax.legend(fontsize="small")

@@ -103,6 +103,13 @@ class SolveResult:
         width = max(len(k) for k, _ in rows)
         return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 
+    def plot(self, path: str | Path | None = None, **kwargs: Any) -> matplotlib.figure.Figure:
+        """The figure of this result (trajectories, z against F(x(t)), I per iteration),
+        saved to `path` only when given; `kwargs` as :func:`qdframe.plotting.plot_result`."""
+        from .plotting import plot_result
+
+        return plot_result(self, path, **kwargs)
+
 
 def _grids(grids: list[int], nodes: int) -> str:
     if grids and grids[-1] != nodes:  # ended on a coarser grid (a failure there)
