@@ -57,14 +57,14 @@ def plot_result(
     values it integrates) and the nodes otherwise.
 
     With a path the figure is saved and not registered with pyplot (no window opens,
-    nothing to close); without one it is a pyplot figure: `plt.show()` shows it and a
-    notebook displays it.
+    nothing to close). Without one it is a pyplot figure, shown by `plt.show()`; in a
+    notebook (the inline backend) it is a plain Figure, displayed once as the cell's value.
     """
     if velocities not in VELOCITY_MODES:
         from .errors import InputError
 
         raise InputError("velocities", " or ".join(f'"{mode}"' for mode in VELOCITY_MODES), velocities)
-    if path is None:
+    if _use_pyplot(path):
         import matplotlib.pyplot as plt
 
         fig = plt.figure(figsize=figsize, layout="constrained")
@@ -84,6 +84,18 @@ def plot_result(
     if path is not None:
         fig.savefig(path, dpi=dpi)
     return fig
+
+
+def _use_pyplot(path: str | Path | None) -> bool:
+    """Register the figure with pyplot only when it is not saved and the backend is not a
+    notebook's inline one: there the returned Figure is displayed as the cell's value, and
+    a pyplot figure would be displayed a second time at the end of the cell."""
+    if path is not None:
+        return False
+    import matplotlib
+    import matplotlib.pyplot  # noqa: F401  (loads the backend: in a notebook, its display hooks)
+
+    return "inline" not in str(matplotlib.get_backend()).lower()
 
 
 def _colors() -> list[str]:
@@ -174,9 +186,8 @@ def _block_supports(ax: Axes, result: SolveResult, means: bool, model: Inclusion
             notes.append(f"F on {label}: a set in R^{len(coords)}, its support not drawn\n({why}; pass model=)")
             continue
         support = _support(model, blocks[b], y, zb, means)
-        name = _set_name(blocks[b])
-        ax.plot(tt, support, color=color, ls="--", lw=1.4, label=f"c({name}, z/|z|)")
-        notes.append(f"F on {label} = {name}: z ∈ F gives |z| ≤ its support c along z")
+        ax.plot(tt, support, color=color, ls="--", lw=1.4, label="c(F(x(t)), z/|z|)")
+        notes.append(f"F on {label} = {_set_name(blocks[b])}\nz ∈ F gives |z| ≤ c(F, z/|z|), its support along z")
     return notes
 
 
@@ -202,10 +213,12 @@ def _unbounded_coords(result: SolveResult) -> list[int]:
     return [i for i in range(len(result.state_names)) if i not in covered]
 
 
-def _set_name(block: Any) -> str:
-    groups = [group.name for group in (*block.max_groups, *block.min_groups)]
-    named = [g for g in groups if g not in ("max", "min")]
-    return " + ".join(named) if named else (block.name or "F")
+def _set_name(block: Any, width: int = 48) -> str:
+    """The set as the model names it: its groups' names (a sum of them), or the block's
+    name when those are missing or too long for a legend."""
+    named = [group.name for group in (*block.max_groups, *block.min_groups) if group.name not in ("max", "min")]
+    text = " + ".join(f"({g})" if len(named) > 1 and " " in g else g for g in named)
+    return text if named and len(text) <= width else (block.name or "F")
 
 
 def _support(model: InclusionModel, block: Any, y: np.ndarray, zb: np.ndarray, means: bool) -> np.ndarray:

@@ -76,10 +76,11 @@ def test_a_ball_set_shows_the_norm_of_z_against_its_support(result72):
     middle = result72.plot().axes[1]
     lines = {line.get_label(): line for line in middle.get_lines()}
     norm = lines["|(x1′, x2′)|"].get_ydata()
-    support = next(line for label, line in lines.items() if label.startswith("c(")).get_ydata()
+    support = lines["c(F(x(t)), z/|z|)"].get_ydata()
     assert len(norm) == len(support) > 1
     # z ∈ F(x) means <z, ψ> ≤ c(F, ψ) for every ψ, so along ψ = z/|z|: |z| ≤ c (solved run)
     assert result72.solved and np.all(norm <= support + 1e-9)
+    assert "B2 ∩ E2(x)" in middle.get_legend().get_title().get_text()  # the set as the model names it
     mean_z = 0.5 * (result72.z[1:] + result72.z[:-1])  # the trapezoid's means (7.2 uses it)
     np.testing.assert_allclose(norm, np.linalg.norm(mean_z, axis=1))
 
@@ -120,6 +121,15 @@ def test_saving_writes_the_file_only_when_a_path_is_given(result71, tmp_path, mo
     assert isinstance(saved, Figure) and plt.get_fignums() == before + [fig.number]  # not kept by pyplot
     plot_result(result71, tmp_path / "figure.svg")  # the CLI's call
     assert (tmp_path / "figure.svg").stat().st_size > 0
+
+
+def test_in_a_notebook_the_figure_is_not_kept_by_pyplot(result71, monkeypatch):
+    """The inline backend displays pyplot's figures at the end of a cell: a returned pyplot
+    figure would appear twice, so there the figure is a plain one, shown as the value."""
+    monkeypatch.setattr(matplotlib, "get_backend", lambda: "module://matplotlib_inline.backend_inline")
+    before = plt.get_fignums()
+    fig = result71.plot()
+    assert isinstance(fig, Figure) and plt.get_fignums() == before
 
 
 def test_an_unknown_velocity_mode_is_an_input_error(result71):
