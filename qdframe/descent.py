@@ -101,8 +101,14 @@ def solve(
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
-    objective, `max_iter` when the budget is spent, `failed` when a backend or the
-    model reports an error mid-run (the message says which).
+    objective, `max_iter` when the budget is spent, `failed` when a backend reports an
+    error mid-run (the message says which).
+
+    A line-search trial point where the model returns NaN/inf is rejected (no decrease);
+    :class:`~qdframe.errors.ModelOutputError` is raised, naming the piece, node, t and the
+    state there, when the model is non-finite at an accepted iterate (its values or
+    gradients, at the start too) or on every step from it (the descent cannot continue).
+    The returned x(t_0) is the model's x0 exactly where x0 is given.
     """
     if isinstance(model, str):
         model = load_model(model)
@@ -157,8 +163,10 @@ def solve(
     result.wall_time_s = wall
     result.options = {**result.options, "max_iter": options.max_iter, "grids": grids,
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale}
-    if result.status == "max_iter":
-        result.message = f"{options.max_iter} iterations spent" + (f" over the grids {grids}" if len(grids) > 1 else "")
+    if result.status == "max_iter":  # the whole budget, and any remark of the last descent after "; "
+        remark = result.message.partition("; ")[2]
+        result.message = (f"{options.max_iter} iterations spent" + (f" over the grids {grids}" if len(grids) > 1 else "")
+                          + (f"; {remark}" if remark else ""))
     return result
 
 
@@ -217,15 +225,27 @@ def descend(
     progress: ProgressCallback | None = None,
     start: np.ndarray | None = None,
 ) -> SolveResult:
-    """Run the descent from `start` (default: the model's initial guess)."""
+    """Run the descent from `start` (default: the model's initial guess).
+
+    x(t_0) = x0 where given (a start's row 0 is set to it); a NaN/inf of the model at an
+    iterate raises ModelOutputError with the state there (:func:`_located`), one at a
+    trial point of the line search only rejects that point (:func:`solve`).
+    """
     clock = time.perf_counter()
     solver.start(functional)
     xi = functional.initial_point() if start is None else np.array(start, dtype=float)
-    terms = functional.terms(xi)
+    n, given = functional.n, functional.start_given
+    xi[0, :n][given] = functional.model.x0[given]  # x0 is data, not an unknown: exactly
+    try:
+        terms = functional.terms(xi)
+    except ModelOutputError as exc:
+        raise _located(functional, xi, exc, "the start") from exc
     nodes = functional.grid.nodes
     history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), functional.boundary_error(xi), 0.0, nodes)]
     status, message = "max_iter", f"{options.max_iter} iterations spent"
     weights = functional.weights
+    rejected, rejected_label = 0, ""  # trial points where the model was NaN/inf, and the last piece named
+    stalled: _Trial | None = None
     try:
         for iteration in range(1, options.max_iter + 2):
             if terms.objective <= options.tol and terms.I <= options.tol:
@@ -243,13 +263,33 @@ def descend(
             if direction.stationary:
                 status, message = "stationary", f"{solver.name}: no further decrease predicted"
                 break
-            step = direction.step
+            step = _keep_start(functional, solver, direction.step)
+            trials: list[_Trial] = []
 
             def along(gamma: float) -> float:
-                return functional.objective(xi + gamma * step)
+                """The objective at ξ + γG; +inf (no decrease) where the model is NaN/inf."""
+                try:
+                    value = functional.objective(xi + gamma * step)
+                except ModelOutputError as exc:
+                    if not exc.nonfinite:
+                        raise
+                    trials.append(_Trial(gamma, exc))
+                    return np.inf
+                trials.append(_Trial(gamma, None if np.isfinite(value) else ModelOutputError(
+                    f"model {functional.model.name!r}: the objective overflows", nonfinite=True)))
+                return value if np.isfinite(value) else np.inf
 
             gamma, value = search.search(along, terms.objective, direction.slope, options.gamma_max)
+            bad = [trial for trial in trials if trial.error is not None]
+            rejected += len(bad)
+            rejected_label = bad[-1].error.label or rejected_label if bad else rejected_label
             if not (gamma > 0 and value < terms.objective):
+                # non-finite within a rounding-sized move of ξ: the model, not stationarity, stops the descent
+                near = NEAR_ITERATE * max(1.0, float(np.max(np.abs(xi)))) / max(float(np.max(np.abs(step))), 1e-300)
+                blocking = [trial for trial in bad if trial.gamma <= near]
+                if blocking:
+                    stalled = min(blocking, key=lambda trial: trial.gamma)
+                    break
                 status, message = "stationary", "no step along the direction decreases the objective"
                 break
             xi = xi + gamma * step
@@ -268,9 +308,69 @@ def descend(
             history.append(record)
             if progress is not None:
                 progress(record)
-    except (BackendError, ModelOutputError) as exc:
+    except BackendError as exc:
         status, message = "failed", str(exc)
+    except ModelOutputError as exc:  # at the accepted iterate (its gradients): nothing to return
+        raise _located(functional, xi, exc, f"the iterate after {len(history) - 1} iterations") from exc
+    if stalled is not None:
+        move = stalled.gamma * float(np.max(np.abs(step)))
+        raise _located(functional, xi, stalled.error, f"the iterate after {len(history) - 1} iterations",
+                       f"a step of {move:.1e} from it along the direction is non-finite and no step decreases "
+                       "the objective: the descent cannot continue") from stalled.error
+    if rejected and status != "solved":
+        message += (f"; {rejected} line-search trial point(s) rejected where the model is non-finite"
+                    + (f" (last: {rejected_label})" if rejected_label else ""))
     return _result(functional, solver, search, options, xi, status, message, history, time.perf_counter() - clock)
+
+
+@dataclass(frozen=True)
+class _Trial:
+    """A line-search trial step γ and, where the model was NaN/inf there, its error."""
+
+    gamma: float
+    error: ModelOutputError | None
+
+
+NEAR_ITERATE = 1e-6  # a trial that moves ξ by at most this (relative, max-norm) is next to the iterate
+START_ROUNDING = 1e-9  # a direction's move of a given x(t_0), relative to max(1, ‖G‖∞), that is rounding
+
+
+def _keep_start(functional: Functional, solver: DirectionSolver, step: np.ndarray) -> np.ndarray:
+    """The step with exact zeros on the given x(t_0) (x0 is not an unknown).
+
+    Directions that solve for the step with x(t_0) as a constraint (gauss-newton's QP)
+    satisfy it only to rounding (~1e-15); more than START_ROUNDING is an error, not rounding.
+    """
+    given = functional.start_given
+    moved = step[0, : functional.n][given]
+    if not np.any(moved):
+        return step
+    size = float(np.max(np.abs(moved)))
+    if not size <= START_ROUNDING * max(1.0, float(np.max(np.abs(step)))):
+        raise BackendError(f"direction {getattr(solver, 'label', solver.name)!r} moved the given x(t_0) by {size:.2e}: "
+                           "a direction must keep x(t_0) = x0")
+    step = step.copy()
+    step[0, : functional.n][given] = 0.0
+    return step
+
+
+def _located(functional: Functional, xi: np.ndarray, error: ModelOutputError, where: str,
+             why: str = "") -> ModelOutputError:
+    """`error` (a model's NaN/inf or wrong shape) as one line naming the piece, the node, t and
+    the state (x, u) of the iterate `xi` at that node, as `check-model` names its points."""
+    name = functional.model.name
+    if not error.nonfinite or error.label is None:
+        return ModelOutputError(f"{error} (at {where})" + (f"; {why}" if why else ""), label=error.label,
+                                node=error.node, nonfinite=error.nonfinite)
+    text = f"model {name!r}: {error.label} is non-finite"
+    if error.node is not None:
+        node = error.node
+        names = list(functional.model.state_names) + list(functional.model.control_names)
+        state = ", ".join(f"{label} = {value:.6g}" for label, value in zip(names, functional.arguments(xi)[node]))
+        text += f" at node {node} (t = {functional.grid.t[node]:.6g}) of {where}, where ({state})"
+    else:
+        text += f" at {where}"
+    return ModelOutputError(text + (f"; {why}" if why else ""), label=error.label, node=error.node, nonfinite=True)
 
 
 def pointwise_excess(functional: Functional, xi: np.ndarray, residual_tol: float) -> str:

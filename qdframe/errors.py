@@ -28,7 +28,18 @@ class UnknownNameError(InputError):
 
 
 class ModelOutputError(QdframeError):
-    """A model returned NaN/inf or arrays of the wrong shape (CLI exit status 1)."""
+    """A model returned NaN/inf or arrays of the wrong shape (CLI exit status 1).
+
+    `label` names the piece ("block F max-group 'f'"), `node` the first grid node with a
+    bad value (None if unknown or not per node), `nonfinite` whether a value was NaN/inf
+    (False: a wrong shape)."""
+
+    def __init__(self, message: str, *, label: str | None = None, node: int | None = None,
+                 nonfinite: bool = False) -> None:
+        super().__init__(message)
+        self.label = label
+        self.node = node
+        self.nonfinite = nonfinite
 
 
 class BackendError(QdframeError):

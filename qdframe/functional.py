@@ -599,15 +599,17 @@ class Functional:
         if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
             expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
             raise ModelOutputError(
-                f"model {self.model.name!r}: {label} returned shape {array.shape}, expected {expected}"
+                f"model {self.model.name!r}: {label} returned shape {array.shape}, expected {expected}", label=label
             )
         finite = np.isfinite(array)
         if not finite.all():
             bad = np.argwhere(~finite)[0]
             node = int(bad[0])
-            when = f" (t = {self.grid.t[node]:.6g})" if array.shape[0] == self.grid.nodes else ""
+            per_node = array.shape[0] == self.grid.nodes
+            when = f" (t = {self.grid.t[node]:.6g})" if per_node else ""
             raise ModelOutputError(
-                f"model {self.model.name!r}: {label} returned a non-finite value at node {node}{when}"
+                f"model {self.model.name!r}: {label} returned a non-finite value at node {node}{when}",
+                label=label, node=node if per_node else None, nonfinite=True,
             )
 
 

@@ -103,6 +103,10 @@ class GaussNewton(DirectionSolver):
             state["mu"] = min(state["mu"] * 2.0, self.mu_max)
 
 
+QP_TOL = 1e-12  # Clarabel's gap and feasibility tolerances for the step QP
+QP_RETRY_TOL = 1e-10  # the second try after InsufficientProgress at QP_TOL
+
+
 class _System:
     """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node."""
 
@@ -346,17 +350,26 @@ class _System:
             sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, total)),
         ], format="csc")
         b_vec = np.concatenate([np.zeros(E.shape[0])] + rhs)
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
-            setattr(settings, name, 1e-12)
         scale = 1.0 / max(self.value, 1e-6)  # the QP objective near O(1): Clarabel's gap tolerances are absolute
-        solution = clarabel.DefaultSolver(
-            sp.triu(scale * P, format="csc"), scale * q, A, b_vec,
-            [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(count)], settings,
-        ).solve()
-        if str(solution.status) == "InsufficientProgress":  # at Clarabel's precision: no further step
-            return np.zeros(self.size), 0.0, 0.0
+
+        def clarabel_solve(tol: float):
+            settings = clarabel.DefaultSettings()
+            settings.verbose = False
+            for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
+                setattr(settings, name, tol)
+            return clarabel.DefaultSolver(
+                sp.triu(scale * P, format="csc"), scale * q, A, b_vec,
+                [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(count)], settings,
+            ).solve()
+
+        solution = clarabel_solve(QP_TOL)
+        if str(solution.status) == "InsufficientProgress":
+            # near a solution (objective ~1e-15) 1e-12 can be below Clarabel's reach; whether it then
+            # stalls depends on rounding-level details of ξ: try once more at QP_RETRY_TOL (the line
+            # search checks the step's actual decrease)
+            solution = clarabel_solve(QP_RETRY_TOL)
+            if str(solution.status) not in ("Solved", "AlmostSolved"):  # at Clarabel's precision: no further step
+                return np.zeros(self.size), 0.0, 0.0
         if str(solution.status) not in ("Solved", "AlmostSolved"):
             raise BackendError(f"direction 'gauss-newton': the step QP (Clarabel) ended with status {solution.status}")
         v = np.asarray(solution.x)
