@@ -457,6 +457,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         selections=functional.selections(xi) if functional.p else None,
         selection_names=[term.name for _, term in functional.selection_terms],
         state_names=tuple(model.state_names),
+        control_names=tuple(model.control_names),
         set_bounds=bounds,
         options={
             "max_iter": options.max_iter,

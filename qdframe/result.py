@@ -5,9 +5,13 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # optional extras (`pip install 'qdframe[frames]'`), imported by the methods that need them
+    import pandas
+    import xarray
 
 STATUSES = ("solved", "stationary", "max_iter", "failed")
 
@@ -60,10 +64,89 @@ class SolveResult:
     set_bounds: list[Any]
     options: dict[str, Any]
     history: list[IterationRecord] = field(default_factory=list)
+    control_names: tuple[str, ...] = ()  # the model's names of the columns of u
 
     @property
     def solved(self) -> bool:
         return self.status == "solved"
+
+    def residuals(self) -> dict[str, float]:
+        """The pointwise residuals this result has, by short name (boundary, inclusion,
+        consistency, then selection and surface where the model has them)."""
+        values = {"boundary": self.boundary_error, "inclusion": self.inclusion_residual,
+                  "consistency": self.consistency_error, "selection": self.selection_residual,
+                  "surface": self.surface_error}
+        return {name: float(value) for name, value in values.items() if value is not None}
+
+    def __repr__(self) -> str:
+        """A few lines for a notebook: how it ended, on what grid, I and the residuals."""
+        lines = [
+            f"SolveResult {self.model}: {self.status}, {self.iterations} iterations, {self.nodes} nodes "
+            f"(T = {self.T:g}), {self.direction} / {self.line_search}, {self.wall_time_s:.3g} s",
+            f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.3e}" if self.cost is not None else ""),
+            "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
+        ]
+        if self.solution_error is not None:
+            lines.append(f"  error vs the known solution {self.solution_error:.2e}")
+        if self.message:
+            lines.append(f"  message: {self.message}")
+        return "\n".join(lines)
+
+    def _columns(self) -> dict[str, list[str]]:
+        """The column names of :meth:`to_dataframe` by part: x (the state names), z (x1' …),
+        u (the control names) and selections (the sign terms' names); a repeated name gets
+        its number ("sgn [2]")."""
+        m = 0 if self.u is None else self.u.shape[1]
+        controls = list(self.control_names) if len(self.control_names) == m else (
+            ["u"] if m == 1 else [f"u{j + 1}" for j in range(m)])
+        parts = {"x": list(self.state_names), "z": [f"{name}'" for name in self.state_names], "u": controls,
+                 "selections": list(self.selection_names) if self.selections is not None else []}
+        taken: set[str] = set()
+        for names in parts.values():
+            original = list(names)
+            for k, name in enumerate(original):
+                if name in taken or original.count(name) > 1:
+                    names[k] = f"{name} [{k + 1}]"
+                taken.add(names[k])
+        return parts
+
+    def to_dataframe(self) -> "pandas.DataFrame":
+        """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
+        per state (the model's state names), z as x1' …, then u and λ where the model has them
+        named as the model names them). Needs pandas: ``pip install 'qdframe[frames]'``."""
+        pd = _optional("pandas", "to_dataframe")
+        names = self._columns()
+        blocks = [self.x, self.z] + [part for part in (self.u, self.selections) if part is not None]
+        labels = names["x"] + names["z"] + names["u"] + names["selections"]
+        index = pd.Index(np.asarray(self.t, dtype=float), name="t")
+        return pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
+
+    def to_xarray(self) -> "xarray.Dataset":
+        """The trajectory as an xarray Dataset: coordinate t, data variables x and z (t, state)
+        with the state names as the `state` coordinate, u (t, control) and selections
+        (t, selection) where the model has them, and attrs model, direction, status, message,
+        nodes, T, iterations, I, objective and the residuals (``residual_<name>``, those that
+        exist). The models declare no units, so none are attached. Needs xarray:
+        ``pip install 'qdframe[frames]'``."""
+        xr = _optional("xarray", "to_xarray")
+        names = self._columns()
+        t = np.asarray(self.t, dtype=float)
+        variables: dict[str, Any] = {"x": (("t", "state"), np.asarray(self.x)), "z": (("t", "state"), np.asarray(self.z))}
+        coords: dict[str, Any] = {"t": t, "state": list(self.state_names)}
+        if self.u is not None:
+            variables["u"] = (("t", "control"), np.asarray(self.u))
+            coords["control"] = names["u"]
+        if self.selections is not None:
+            variables["selections"] = (("t", "selection"), np.asarray(self.selections))
+            coords["selection"] = names["selections"]
+        attrs: dict[str, Any] = {"model": self.model, "direction": self.direction, "line_search": self.line_search,
+                                 "status": self.status, "message": self.message, "nodes": int(self.nodes),
+                                 "T": float(self.T), "iterations": int(self.iterations), "I": float(self.I),
+                                 "objective": float(self.objective)}
+        attrs.update({f"residual_{name}": value for name, value in self.residuals().items()})
+        if self.solution_error is not None:
+            attrs["solution_error"] = float(self.solution_error)
+        return xr.Dataset(variables, coords=coords, attrs=attrs)
 
     def to_dict(self) -> dict[str, Any]:
         data = {k: v for k, v in self.__dict__.items() if k != "history"}
@@ -109,6 +192,16 @@ class SolveResult:
         from .plotting import plot_result
 
         return plot_result(self, path, **kwargs)
+
+
+def _optional(module: str, method: str) -> Any:
+    """An optional extra's module, or an ImportError saying how to install it."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise ImportError(f"SolveResult.{method}() needs {module}: pip install 'qdframe[frames]'") from None
 
 
 def _grids(grids: list[int], nodes: int) -> str:

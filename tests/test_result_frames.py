@@ -1,0 +1,112 @@
+"""Results for notebooks (issue 17, item 14): SolveResult's repr, to_dataframe() and to_xarray()."""
+
+import dataclasses
+import sys
+
+import numpy as np
+import pytest
+
+import qdframe
+
+# paper-7.3's x(0) given (its default is simulated at first use): states, a control u and
+# three sign terms with selections; a short run is enough, the frames need not be solved
+X0_73 = [-1.0524, 1.0994, -0.7873, 0.0, 0.0265, 1.1196]
+
+
+@pytest.fixture(scope="module")
+def masses():
+    return qdframe.solve(qdframe.load_model("paper-7.3", x0=X0_73), nodes=11, max_iter=3)
+
+
+@pytest.fixture(scope="module")
+def paper71():
+    return qdframe.solve("paper-7.1", nodes=11, max_iter=10)
+
+
+# ---------------------------------------------------------------- repr
+def test_repr_says_how_it_ended_in_a_few_lines(paper71):
+    text = repr(paper71)
+    lines = text.splitlines()
+    assert 3 <= len(lines) <= 5 and all(len(line) < 130 for line in lines)
+    assert lines[0].startswith(f"SolveResult paper-7.1: {paper71.status}, {paper71.iterations} iterations, 11 nodes")
+    assert f"I {paper71.I:.3e}" in text and f"cost {paper71.cost:.3e}" in text
+    assert f"boundary {paper71.boundary_error:.2e}" in text
+    assert f"inclusion {paper71.inclusion_residual:.2e}" in text
+    assert f"consistency {paper71.consistency_error:.2e}" in text
+    assert "selection" not in text and "surface" not in text  # paper-7.1 has neither
+    assert f"error vs the known solution {paper71.solution_error:.2e}" in text  # it has a known solution
+    assert str(paper71) == text
+
+
+def test_repr_shows_the_residuals_the_model_has_and_the_message(masses):
+    text = repr(masses)
+    assert f"selection {masses.selection_residual:.2e}" in text and f"surface {masses.surface_error:.2e}" in text
+    assert "known solution" not in text  # none known for 7.3: no error estimate is invented
+    assert masses.status == "max_iter" and text.splitlines()[-1] == f"  message: {masses.message}"
+    assert masses.residuals() == {"boundary": masses.boundary_error, "inclusion": masses.inclusion_residual,
+                                  "consistency": masses.consistency_error, "selection": masses.selection_residual,
+                                  "surface": masses.surface_error}
+
+
+# ---------------------------------------------------------------- pandas
+def test_dataframe_is_indexed_by_t_with_a_column_per_state(masses):
+    pytest.importorskip("pandas")
+    df = masses.to_dataframe()
+    assert df.index.name == "t" and np.array_equal(df.index.to_numpy(), masses.t)
+    states = list(masses.state_names)
+    assert list(df.columns) == (states + [f"{name}'" for name in states] + ["u"]
+                                + ["1.05|x|Sgn(x4)", "0.3 Sgn(x5)", "0.3 Sgn(x6)"])
+    assert np.array_equal(df[states].to_numpy(), masses.x)
+    assert np.array_equal(df["x4'"].to_numpy(), masses.z[:, 3])
+    assert np.array_equal(df["u"].to_numpy(), masses.u[:, 0])
+    assert np.array_equal(df["0.3 Sgn(x6)"].to_numpy(), masses.selections[:, 2])
+    assert df.loc[masses.t[4], "x2"] == masses.x[4, 1]
+
+
+def test_dataframe_without_controls_or_selections_has_only_x_and_z(paper71):
+    pytest.importorskip("pandas")
+    df = paper71.to_dataframe()
+    assert list(df.columns) == ["x1", "x2", "x1'", "x2'"] and df.shape == (11, 4)
+
+
+def test_repeated_names_get_their_number(masses):
+    pytest.importorskip("pandas")
+    renamed = dataclasses.replace(masses, selection_names=["sgn", "sgn", "x1"], control_names=())
+    df = renamed.to_dataframe()
+    assert list(df.columns[-4:]) == ["u", "sgn [1]", "sgn [2]", "x1 [3]"]  # "x1" is a state's column
+    assert df.columns.is_unique
+
+
+# ---------------------------------------------------------------- xarray
+def test_dataset_has_t_state_names_and_attrs(masses):
+    pytest.importorskip("xarray")
+    ds = masses.to_xarray()
+    assert ds["x"].dims == ("t", "state") and ds["z"].dims == ("t", "state")
+    assert list(ds["state"].values) == list(masses.state_names)
+    assert np.array_equal(ds["t"].values, masses.t)
+    assert np.array_equal(ds["x"].sel(state="x3").values, masses.x[:, 2])
+    assert np.array_equal(ds["z"].values, masses.z)
+    assert ds["u"].dims == ("t", "control") and list(ds["control"].values) == ["u"]
+    assert np.array_equal(ds["u"].values, masses.u)
+    assert list(ds["selection"].values) == masses.selection_names
+    assert np.array_equal(ds["selections"].sel(selection="0.3 Sgn(x5)").values, masses.selections[:, 1])
+    attrs = ds.attrs
+    assert (attrs["model"], attrs["status"], attrs["nodes"]) == ("paper-7.3", masses.status, 11)
+    assert attrs["I"] == masses.I and attrs["residual_surface"] == masses.surface_error
+    assert attrs["residual_selection"] == masses.selection_residual
+    assert all(isinstance(value, (str, int, float)) for value in attrs.values())  # netCDF-ready
+
+
+def test_dataset_without_controls(paper71):
+    pytest.importorskip("xarray")
+    ds = paper71.to_xarray()
+    assert set(ds.data_vars) == {"x", "z"} and "control" not in ds.dims
+    assert ds.attrs["solution_error"] == paper71.solution_error and "residual_surface" not in ds.attrs
+
+
+# ---------------------------------------------------------------- optional extras
+@pytest.mark.parametrize("method, module", [("to_dataframe", "pandas"), ("to_xarray", "xarray")])
+def test_a_missing_extra_says_how_to_install_it(paper71, monkeypatch, method, module):
+    monkeypatch.setitem(sys.modules, module, None)  # import fails as if not installed
+    with pytest.raises(ImportError, match=rf"^SolveResult\.{method}\(\) needs {module}: pip install 'qdframe\[frames\]'$"):
+        getattr(paper71, method)()
