@@ -190,29 +190,32 @@ def _solve(args: argparse.Namespace) -> int:
             _writable(f"--{flag}", getattr(args, flag))
     overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic}
     model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
+    direction = with_options(make_direction(args.direction), dict(args.option or ()))
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
         print(f"solving {model.name} on {args.nodes} nodes with {args.direction}, budget {args.max_iter} iterations …",
               end="", file=sys.stderr, flush=True)
-    result = solve(
-        model,
-        nodes=args.nodes,
-        direction=with_options(make_direction(args.direction), dict(args.option or ())),
-        line_search=args.line_search,
-        max_iter=args.max_iter,
-        tol=args.tol,
-        delta=args.delta,
-        eps=args.eps,
-        gamma_max=args.gamma_max,
-        continuation=args.continuation,
-        progress=_progress_printer(args.max_iter) if show_progress else None,
-        scheme=args.scheme,
-        signs=args.signs,
-        selection_scale=args.selection_scale,
-        residual_tol=args.residual_tol,
-    )
-    if show_progress:
-        print(file=sys.stderr)
+    try:
+        result = solve(
+            model,
+            nodes=args.nodes,
+            direction=direction,
+            line_search=args.line_search,
+            max_iter=args.max_iter,
+            tol=args.tol,
+            delta=args.delta,
+            eps=args.eps,
+            gamma_max=args.gamma_max,
+            continuation=args.continuation,
+            progress=_progress_printer(args.max_iter) if show_progress else None,
+            scheme=args.scheme,
+            signs=args.signs,
+            selection_scale=args.selection_scale,
+            residual_tol=args.residual_tol,
+        )
+    finally:  # end the progress line, also before an error's line
+        if show_progress:
+            print(file=sys.stderr)
     try:
         if to_stdout:
             print(result.to_json())

@@ -87,8 +87,9 @@ def solve(
     `continuation` lists coarser grids to solve on first (e.g. (11, 101) before
     nodes=1001): each grid's result, interpolated, starts the next. "auto" is the ladder
     11, 101, 1001, … below `nodes` (:func:`grid_schedule`), "none" (or ()) the one grid,
-    None the direction's own (`default_continuation`: "auto" for the paper's min-norm
-    directions, "none" for gauss-newton). `max_iter` is the budget of all grids together;
+    None the direction's own (`default_continuation`: "auto" for both, from the
+    direction's `coarsest_nodes` with its `ladder_steps`: 11, 101, 1001, … for the paper's
+    min-norm directions, 101, 301, 1001, 3001, … for gauss-newton). `max_iter` is the budget of all grids together;
     the history and `iterations` cover all, each record naming its grid (`nodes`); each
     grid after the first adds a record of its interpolated start (same iteration number).
 
