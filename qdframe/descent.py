@@ -109,8 +109,10 @@ def solve(
     :class:`~qdframe.errors.ModelOutputError` is raised, naming the piece, node, t and the
     state there, when the model is non-finite at an accepted iterate (its values or
     gradients, at the start too) or on every step from it (the descent cannot continue).
-    The returned x(t_0) is the model's x0 exactly where x0 is given.
+    The returned x(t_0) is the model's x0 exactly where x0 is given. `wall_time_s` is
+    the whole call: every grid, its start and its result's checks.
     """
+    clock = time.perf_counter()
     if isinstance(model, str):
         model = load_model(model)
     scheme = model.default_scheme if scheme is None else scheme
@@ -128,7 +130,7 @@ def solve(
         if not stages and functional.p:
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
-    start, history, result, wall = None, [], None, 0.0
+    start, history, result = None, [], None
     for functional in stages:
         count = functional.grid.nodes
         if result is not None:  # the previous stage's iterate, unless the model's start is better
@@ -149,7 +151,6 @@ def solve(
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, solver, search, stage, shown, start)
         history += [shift(record) for record in result.history]
-        wall += result.wall_time_s
         if result.status == "failed":
             if functional is not stages[-1]:
                 result.message = f"on the grid of {count} nodes{' (band start)' if functional.signs != signs else ''}: {result.message}"
@@ -161,7 +162,7 @@ def solve(
         result.status, result.message = "stationary", message
     result.history = history
     result.iterations = history[-1].iteration
-    result.wall_time_s = wall
+    result.wall_time_s = time.perf_counter() - clock
     result.options = {**result.options, "max_iter": options.max_iter, "grids": grids,
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale}
     if result.status == "max_iter":  # the whole budget, and any remark of the last descent after "; "
