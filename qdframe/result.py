@@ -167,6 +167,7 @@ class SolveResult:
             ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
             ("direction / line search", f"{self.direction} / {self.line_search}"),
             ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []), self.nodes)),
+            ("scheme, signs", f"{self.options.get('scheme', '—')}, {self.options.get('signs', '—')}"),
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),
