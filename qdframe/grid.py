@@ -29,11 +29,13 @@ def make_scheme(scheme: "str | Scheme") -> Scheme:
 
 @dataclass(frozen=True)
 class Grid:
-    """`nodes` points on [0, T] laid out by `scheme` (default: the trapezoid rule)."""
+    """`nodes` points on [0, T] laid out by `scheme` (default: the trapezoid rule), on a
+    uniform mesh or on the given mesh times `mesh_times` (see :meth:`from_mesh`)."""
 
     T: float
     nodes: int
     scheme: "str | Scheme" = "trapezoid"
+    mesh_times: np.ndarray | None = field(default=None, compare=False, repr=False)
     t: np.ndarray = field(init=False, repr=False)
     weights: np.ndarray = field(init=False, repr=False)
     mesh: np.ndarray = field(init=False, repr=False)
@@ -49,7 +51,19 @@ class Grid:
             raise InputError("T", "a positive finite number", self.T)
         scheme = make_scheme(self.scheme)
         scheme.check_nodes(int(self.nodes))
-        layout = scheme.layout(float(self.T), int(self.nodes))
+        intervals = (int(self.nodes) - 1) // scheme.stages
+        if self.mesh_times is None:
+            tau = np.linspace(0.0, float(self.T), intervals + 1)
+        else:
+            tau = np.asarray(self.mesh_times, dtype=float)
+            if tau.ndim != 1 or tau.size != intervals + 1 or not np.all(np.isfinite(tau)):
+                raise InputError("mesh", f"{intervals + 1} finite mesh times for {self.nodes} points of {scheme.name}",
+                                 f"shape {tau.shape}")
+            if tau[0] != 0.0 or tau[-1] != float(self.T) or not np.all(np.diff(tau) > 0):
+                raise InputError("mesh", f"increasing mesh times from 0 to T = {float(self.T):g}",
+                                 f"[{tau[0]:g}, …, {tau[-1]:g}]")
+        object.__setattr__(self, "mesh_times", tau)
+        layout = scheme.layout(tau)
         object.__setattr__(self, "scheme", scheme)
         for name in ("t", "weights", "mesh", "increments"):
             object.__setattr__(self, name, getattr(layout, name))
@@ -61,10 +75,34 @@ class Grid:
         last[-1] = 1.0
         object.__setattr__(self, "integral_weights", self.cumulative_adjoint(last))
 
+    @classmethod
+    def from_mesh(cls, mesh: np.ndarray, scheme: "str | Scheme" = "trapezoid") -> "Grid":
+        """The grid of `scheme` on the mesh times `mesh` (increasing, from 0 to T)."""
+        tau = np.asarray(mesh, dtype=float)
+        if tau.ndim != 1 or tau.size < 2:
+            raise InputError("mesh", "at least two increasing mesh times from 0 to T", f"shape {tau.shape}")
+        stages = make_scheme(scheme).stages
+        return cls(float(tau[-1]), stages * (tau.size - 1) + 1, scheme, tau)
+
     @property
     def step(self) -> float:
         """The largest mesh step h."""
-        return float(np.max(np.diff(self.t[self.mesh])))
+        return float(np.max(np.diff(self.mesh_times)))
+
+    @property
+    def uniform(self) -> bool:
+        """Whether the mesh steps are equal (to rounding)."""
+        h = np.diff(self.mesh_times)
+        return bool(np.ptp(h) <= 1e-12 * self.T)
+
+    def bisected(self) -> "Grid":
+        """The same scheme on the mesh with every interval halved (its points include this
+        grid's mesh points): the companion solve of the error estimate."""
+        tau = self.mesh_times
+        finer = np.empty(2 * tau.size - 1)
+        finer[::2], finer[1::2] = tau, 0.5 * (tau[:-1] + tau[1:])
+        finer[-1] = tau[-1]
+        return Grid.from_mesh(finer, self.scheme)
 
     @property
     def base(self) -> np.ndarray:

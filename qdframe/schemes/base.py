@@ -1,7 +1,8 @@
-"""The Scheme interface: how a solve discretizes x' = z on [0, T].
+"""The Scheme interface: how a solve discretizes x' = z on a mesh 0 = τ_0 < … < τ_K = T.
 
-A scheme places the time points t_p, the quadrature weights w_p of the integral terms
-(φ, ω, υ and the selections' term, paper (3.13)–(3.17)) and the local integration rule
+A scheme places the time points t_p (the mesh points and `stages − 1` stage points inside
+each mesh interval), the quadrature weights w_p of the integral terms (φ, ω, υ and the
+selections' term, paper (3.13)–(3.17)) and the local integration rule
 
     Z_p = Z_{base(p)} + Σ_j A_pj z_j,   Z_0 = 0,
 
@@ -9,8 +10,9 @@ where base(p) is the last *mesh* point before p and Z_p approximates ∫_0^{t_p}
 x_p − x0 − Z_p is then the consistency residual of υ. The trapezoid rule (the paper's),
 implicit Euler and Radau IIA are such rules; :class:`~qdframe.grid.Grid` turns any of
 them into the cumulative integral, its adjoint and the sparse recursion used by
-gauss-newton. A third scheme is one small class registered under the entry-point
-group ``qdframe.schemes``.
+gauss-newton. The mesh need not be uniform: adaptive solves (`accuracy=`) refine it
+where the error estimate is large and place mesh points on switch times. A third scheme
+is one small class registered under the entry-point group ``qdframe.schemes``.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
+
+from ..errors import InputError
 
 
 @dataclass(frozen=True)
@@ -44,26 +48,39 @@ class Scheme(ABC):
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     order: ClassVar[int] = 1  # classical order at the mesh points for smooth solutions
+    stages: ClassVar[int] = 1  # points per mesh interval: `nodes` = stages·K + 1 for K intervals
 
     @abstractmethod
-    def layout(self, T: float, nodes: int) -> Layout:
-        """The layout with `nodes` points in all (the number of unknown x, z rows)."""
+    def layout(self, mesh: np.ndarray) -> Layout:
+        """The layout on the mesh times `mesh` (K + 1 increasing values from 0 to T), with
+        stages·K + 1 points in all (the number of unknown x, z rows)."""
 
     def check_nodes(self, nodes: int) -> None:
-        """Raise InputError when `nodes` does not fit the scheme (default: any ≥ 2)."""
+        """Raise InputError when `nodes` does not fit the scheme (stages·K + 1, K ≥ 1)."""
+        if (nodes - 1) % self.stages:
+            raise InputError("nodes", f"{self.stages}·K + 1 points (K intervals of {self.stages} points) "
+                             f"for {self.name}", nodes)
 
 
-def uniform_layout(T: float, nodes: int, lower: float, diagonal: float, ends: tuple[float, float]) -> Layout:
-    """A one-step rule on a uniform mesh, Z_k = Z_{k−1} + h·(lower·z_{k−1} + diagonal·z_k),
-    with weights h at the interior points and h·ends at t_0 and t_N."""
-    t = np.linspace(0.0, T, nodes)
-    h = T / (nodes - 1)
+def one_step_layout(mesh: np.ndarray, lower: float, diagonal: float, ends: tuple[float, float]) -> Layout:
+    """A one-step rule on the mesh τ, Z_k = Z_{k−1} + h_k·(lower·z_{k−1} + diagonal·z_k),
+    h_k = τ_k − τ_{k−1}, with weights w_k = diagonal·h_k + lower·h_{k+1} at the interior
+    points (the rule's own quadrature) and ends[0]·h_1, ends[1]·h_K at τ_0 and τ_K."""
+    t = np.asarray(mesh, dtype=float)
+    nodes = t.size
+    h = np.diff(t)
     k = np.arange(1, nodes)
     rows = np.concatenate([k, k])
     cols = np.concatenate([k, k - 1])
-    vals = np.concatenate([np.full(k.size, h * diagonal), np.full(k.size, h * lower)])
+    vals = np.concatenate([h * diagonal, h * lower])
     keep = vals != 0
     increments = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(nodes, nodes))
-    weights = np.full(nodes, h)
-    weights[[0, -1]] = h * np.asarray(ends)
+    weights = np.empty(nodes)
+    weights[1:-1] = diagonal * h[:-1] + lower * h[1:]
+    weights[0], weights[-1] = ends[0] * h[0], ends[1] * h[-1]
     return Layout(t, weights, np.arange(nodes), increments)
+
+
+def uniform_layout(T: float, nodes: int, lower: float, diagonal: float, ends: tuple[float, float]) -> Layout:
+    """:func:`one_step_layout` on the uniform mesh of `nodes` points on [0, T]."""
+    return one_step_layout(np.linspace(0.0, T, nodes), lower, diagonal, ends)

@@ -7,7 +7,9 @@ h/2) as a velocity in F(x_0), so every reported z_k is checked against F.
 
 from __future__ import annotations
 
-from .base import Layout, Scheme, uniform_layout
+import numpy as np
+
+from .base import Layout, Scheme, one_step_layout
 
 
 class ImplicitEuler(Scheme):
@@ -15,5 +17,5 @@ class ImplicitEuler(Scheme):
     description = "implicit Euler, order 1, the complementarity systems' standard"
     order = 1
 
-    def layout(self, T: float, nodes: int) -> Layout:
-        return uniform_layout(T, nodes, lower=0.0, diagonal=1.0, ends=(0.5, 1.0))
+    def layout(self, mesh: np.ndarray) -> Layout:
+        return one_step_layout(mesh, lower=0.0, diagonal=1.0, ends=(0.5, 1.0))

@@ -7,7 +7,9 @@ velocity (and its friction selection) is not determined by the scheme.
 
 from __future__ import annotations
 
-from .base import Layout, Scheme, uniform_layout
+import numpy as np
+
+from .base import Layout, Scheme, one_step_layout
 
 
 class Trapezoid(Scheme):
@@ -15,5 +17,5 @@ class Trapezoid(Scheme):
     description = "trapezoid rule (the paper's), order 2"
     order = 2
 
-    def layout(self, T: float, nodes: int) -> Layout:
-        return uniform_layout(T, nodes, lower=0.5, diagonal=0.5, ends=(0.5, 0.5))
+    def layout(self, mesh: np.ndarray) -> Layout:
+        return one_step_layout(mesh, lower=0.5, diagonal=0.5, ends=(0.5, 0.5))
