@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import certify
 from .directions.base import DirectionSolver
 from .errors import BackendError, InputError, ModelOutputError
 from .functional import Functional
@@ -31,7 +32,7 @@ class DescentOptions:
     delta: float = 1e-3
     eps: float = 1e-2
     gamma_max: float = 1.0
-    residual_tol: float = 1e-8  # pointwise, absolute: see :func:`pointwise_excess`
+    residual_tol: float = 1e-8  # pointwise, scaled to the states: see :mod:`qdframe.certify`
 
     def __post_init__(self) -> None:
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
@@ -251,8 +252,7 @@ def descend(
     try:
         for iteration in range(1, options.max_iter + 2):
             if terms.objective <= options.tol and terms.I <= options.tol:
-                excess = pointwise_excess(functional, xi, options.residual_tol)
-                if not excess:
+                if not certify.failures(certify.checks(functional, xi, options.residual_tol)):
                     status, message = "solved", ""
                     break
             if iteration > options.max_iter:
@@ -375,36 +375,16 @@ def _located(functional: Functional, xi: np.ndarray, error: ModelOutputError, wh
     return ModelOutputError(text + (f"; {why}" if why else ""), label=error.label, node=error.node, nonfinite=True)
 
 
-def pointwise_excess(functional: Functional, xi: np.ndarray, residual_tol: float) -> str:
-    """The pointwise checks a `solved` trajectory must pass, and those it fails (empty if none).
-
-    Every residual — the boundary error, max_k dist(z_k, F(y_k)) (with the selections),
-    max |λ − clip(λ + s, −1, 1)| (λ ∈ Sgn(s)), the consistency max |x − x0 − ∫z| and the
-    surface error — must be ≤ residual_tol. A small I alone is not enough: it weighs node k
-    by w_k and so allows √(2I/w_k) there.
-    """
-    residuals = functional.residuals(xi)
-    bound = residual_tol
-    checks = [
-        ("boundary error", residuals.boundary_error),
-        ("inclusion residual", residuals.inclusion_residual),
-        ("selection residual", residuals.selection_residual or 0.0),
-        ("consistency error", residuals.consistency_error),
-        ("surface error", residuals.surface_error or 0.0),
-    ]
-    return ", ".join(f"{name} {value:.2e} > {bound:.1e}" for name, value in checks if not value <= bound)
-
-
 def _residuals_disagree(functional: Functional, residuals, I: float) -> str:
     """What I ≤ tol implies for each residual, checked (empty when all agree).
 
-    χ ≤ I gives |boundary residual| ≤ √(2I); φ, υ, ω ≤ I give, at any node k,
-    h, |x − x0 − ∫z|, ‖e‖ ≤ √(2I/w_k).
+    χ ≤ I gives |x0 + ∫z − xT| ≤ √(2I); φ, υ, ω ≤ I give, at any node k,
+    h, |x − x0 − ∫z|, ‖e‖ ≤ √(2I/w_k); the boundary error read from x adds υ's at T.
     """
     slack = 1.0 + 1e-6
     pointwise = np.sqrt(2.0 * I / np.min(functional.weights)) * slack + 1e-300
     checks = [
-        ("boundary error", residuals.boundary_error, np.sqrt(2.0 * I) * slack + 1e-300),
+        ("boundary error", residuals.boundary_error, np.sqrt(2.0 * I) * slack + pointwise),
         ("inclusion residual", residuals.inclusion_residual, pointwise),
         ("consistency error", residuals.consistency_error, pointwise),
         ("surface error", residuals.surface_error or 0.0, pointwise),
@@ -422,9 +402,9 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         disagreement = _residuals_disagree(functional, residuals, terms.I)
         if disagreement:
             status, message = "failed", f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
-    elif terms.objective <= options.tol and terms.I <= options.tol:
-        excess = pointwise_excess(functional, xi, options.residual_tol)
-        message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {excess}"
+    found = certify.checks(functional, xi, options.residual_tol)
+    if status != "solved" and terms.objective <= options.tol and terms.I <= options.tol:
+        message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {certify.failures(found)}"
     x, z = functional.split(xi)
     exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
@@ -470,4 +450,6 @@ def _result(functional, solver, search, options, xi, status, message, history, e
             "residual_tol": options.residual_tol,
         },
         history=list(history),
+        checks={check.name: {"value": check.value, "tol": check.tol} for check in found},
+        binding_check=certify.binding(found),
     )

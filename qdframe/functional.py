@@ -56,7 +56,7 @@ class Terms:
 class Residuals:
     """Checks of a trajectory that do not depend on the functional's weighting."""
 
-    boundary_error: float  # max_j |x0_j + ∫z_j − xT_j|
+    boundary_error: float  # max_j |x_j(T) − xT_j| and max_i |x_i(T) − x_i(0)| (periodic), read from x itself
     inclusion_residual: float  # max_k max_b h_b(x_k, z_k)
     surface_error: float | None  # max_k ‖e(x_k)‖_∞
     consistency_error: float  # max_k |x_k − x0 − Z_k|
@@ -279,8 +279,11 @@ class Functional:
         return self.terms(xi).objective
 
     def boundary_error(self, xi: np.ndarray) -> float:
-        """max |x_j(0) + ∫z_j − xT_j| over J and |∫z_i| over the periodic P (0 if both are empty)."""
-        end = self._end_residual(*self.split(xi))
+        """max |x_j(T) − xT_j| over J and |x_i(T) − x_i(0)| over the periodic P, read from the
+        trajectory x itself (0 if both are empty). χ measures x0 + ∫z instead; the two differ
+        by the consistency error at T."""
+        x = xi[:, : self.n]
+        end = np.concatenate([x[-1, self.end] - self.model.end_values, x[-1, self.periodic] - x[0, self.periodic]])
         return float(np.max(np.abs(end))) if end.size else 0.0
 
     def residuals(self, xi: np.ndarray) -> Residuals:

@@ -26,7 +26,7 @@ class IterationRecord:
     step: float  # γ of the step that led here (0 for the first iterate)
     direction_norm: float  # L² norm of the direction G that led here
     deviation: float  # max_k ‖v̄_k + w̄_k‖ of that direction
-    boundary_error: float  # max_j |x0_j + ∫z_j − xT_j| after the step
+    boundary_error: float  # max_j |x_j(T) − xT_j| (and periodic gaps) after the step
     time_s: float  # seconds since the solve started
     nodes: int  # the grid of this iterate (grids change under continuation)
 
@@ -65,6 +65,8 @@ class SolveResult:
     options: dict[str, Any]
     history: list[IterationRecord] = field(default_factory=list)
     control_names: tuple[str, ...] = ()  # the model's names of the columns of u
+    checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.certify
+    binding_check: str = ""  # the check with the largest value/tol
 
     @property
     def solved(self) -> bool:
@@ -172,16 +174,17 @@ class SolveResult:
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),
             ("I = φ+χ+ω+υ+σ", f"{self.I:.3e}  (" + ", ".join(f"{k} {v:.1e}" for k, v in self.terms.items()) + ")"),
-            ("boundary error", f"{self.boundary_error:.3e}"),
-            ("inclusion residual", f"{self.inclusion_residual:.3e}"),
-            ("consistency error", f"{self.consistency_error:.3e}"),
         ]
-        if self.selection_residual is not None:
-            rows.append(("selection residual", f"{self.selection_residual:.3e}"))
         if self.cost is not None:
             rows.insert(7, ("cost", f"{self.cost:.3e}"))
-        if self.surface_error is not None:
-            rows.append(("surface error", f"{self.surface_error:.3e}"))
+        labels = {"boundary": "boundary error", "inclusion": "inclusion residual", "selection": "selection residual",
+                  "consistency": "consistency error", "surface": "surface error"}
+        for name, value in self.residuals().items():
+            check = self.checks.get(name)
+            text = f"{value:.3e}"
+            if check is not None:
+                text += f"  (tol {check['tol']:.1e}{', binds' if name == self.binding_check else ''})"
+            rows.append((labels[name], text))
         if self.solution_error is not None:
             rows.append(("error vs known solution", f"{self.solution_error:.3e}"))
         width = max(len(k) for k, _ in rows)

@@ -1,0 +1,72 @@
+"""What `solved` certifies: pointwise checks of the trajectory the user gets.
+
+A small I is necessary but not enough: I weighs node k by w_k, so I ≤ tol allows a
+residual √(2·tol/w_k) there. `solved` therefore also requires every check below, each a
+max over the nodes against an absolute tolerance scaled to the problem's states:
+
+========================  ==========================================  =====================
+check                     value                                       tolerance
+========================  ==========================================  =====================
+boundary                  max |x_j(T) − xT_j|, |x_i(T) − x_i(0)| (P)  residual_tol·scale_x
+inclusion                 max_k dist(z_k, F(x_k, u_k)) (φ's h_b)      residual_tol·scale_z
+selection                 max |λ − clip(λ + s, −1, 1)| (λ ∈ Sgn(s))   residual_tol
+consistency               max_k |x_k − x(t_0) − ∫_0^{t_k} z|          residual_tol·scale_x
+surface                   max_k |e(x_k)|                              residual_tol·scale_x
+========================  ==========================================  =====================
+
+scale_x = max(1, max |x|) and scale_z = max(1, max |z|) over the trajectory: a problem
+whose states are of size 1e3 gets tolerances 1e3 times larger, one of size 1e-3 keeps
+the absolute tolerance. x(t_0) = x0 holds exactly (x0 is data, not an unknown).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .functional import Functional
+
+
+@dataclass(frozen=True)
+class Check:
+    """One pointwise check: its value (a max over the nodes) and its tolerance."""
+
+    name: str
+    value: float
+    tol: float
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.value <= self.tol)
+
+    @property
+    def ratio(self) -> float:
+        """value / tol: above 1 the check fails; the largest ratio is the binding check."""
+        return self.value / self.tol
+
+
+def checks(functional: Functional, xi: np.ndarray, residual_tol: float) -> list[Check]:
+    """The pointwise checks of the iterate ξ (the table in this module's docstring)."""
+    residuals = functional.residuals(xi)
+    x, z = functional.split(xi)
+    tol_x = residual_tol * max(1.0, float(np.max(np.abs(x))))
+    tol_z = residual_tol * max(1.0, float(np.max(np.abs(z))))
+    out = [Check("boundary", residuals.boundary_error, tol_x),
+           Check("inclusion", residuals.inclusion_residual, tol_z)]
+    if residuals.selection_residual is not None:
+        out.append(Check("selection", residuals.selection_residual, residual_tol))
+    out.append(Check("consistency", residuals.consistency_error, tol_x))
+    if residuals.surface_error is not None:
+        out.append(Check("surface", residuals.surface_error, tol_x))
+    return out
+
+
+def failures(found: list[Check]) -> str:
+    """The failed checks as one clause ("inclusion 3.1e-06 > 1.0e-08, …"), empty if none."""
+    return ", ".join(f"{check.name} {check.value:.2e} > {check.tol:.1e}" for check in found if not check.passed)
+
+
+def binding(found: list[Check]) -> str:
+    """The name of the check closest to (or furthest past) its tolerance."""
+    return max(found, key=lambda check: check.ratio).name
