@@ -9,11 +9,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import certify
+from . import adaptive, certify, switches
 from .directions.base import DirectionSolver
 from .errors import BackendError, InputError, ModelOutputError
 from .functional import Functional
-from .grid import Grid
+from .grid import Grid, make_scheme
 from .line_searches.base import LineSearch
 from .model import InclusionModel
 from .schemes import Scheme
@@ -63,7 +63,7 @@ def make_line_search(line_search: str | LineSearch) -> LineSearch:
 
 def solve(
     model: str | InclusionModel,
-    nodes: int = 101,
+    nodes: int | None = None,
     direction: str | DirectionSolver = "gauss-newton",
     line_search: str | LineSearch | None = None,
     *,
@@ -78,6 +78,10 @@ def solve(
     scheme: str | Scheme | None = None,
     signs: str = "exact",
     selection_scale: float = 1.0,
+    mesh: Sequence[float] | np.ndarray | None = None,
+    estimate: bool = True,
+    accuracy: float | None = None,
+    max_nodes: int = 100_001,
 ) -> SolveResult:
     """Find a trajectory of `model` by quasidifferential descent.
 
@@ -111,12 +115,31 @@ def solve(
     state there, when the model is non-finite at an accepted iterate (its values or
     gradients, at the start too) or on every step from it (the descent cannot continue).
     The returned x(t_0) is the model's x0 exactly where x0 is given. `wall_time_s` is
-    the whole call: every grid, its start and its result's checks.
+    the whole call: every grid, its start, its result's checks and the error estimate.
+
+    `nodes` is the number of points (default 101; under `accuracy`, 21: the first mesh).
+    `mesh` gives the mesh times 0 = τ_0 < … < τ_K = T of the requested grid (nonuniform
+    allowed; `nodes` is then stages·K + 1 and is ignored). A `solved` result carries
+    `error_estimate`, an estimate of max_t |x(t) − x*(t)| from a second solve on the
+    bisected mesh (:mod:`qdframe.adaptive`; `estimate=False` skips it: None), and
+    `switch_times`, where a Filippov selection changes regime (:mod:`qdframe.switches`).
+    `accuracy` asks for error_estimate ≤ accuracy: mesh points are moved onto the switch
+    times and the mesh is refined where the estimate is large, up to `max_nodes` points;
+    with `accuracy` and no `scheme` the scheme is radau-iia (order 3).
     """
     clock = time.perf_counter()
     if isinstance(model, str):
         model = load_model(model)
-    scheme = model.default_scheme if scheme is None else scheme
+    if accuracy is not None and not (isinstance(accuracy, (int, float)) and np.isfinite(accuracy) and accuracy > 0):
+        raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
+    if isinstance(max_nodes, bool) or not isinstance(max_nodes, (int, np.integer)) or max_nodes < 3:
+        raise InputError("max_nodes", "an integer ≥ 3", max_nodes)
+    if nodes is None:
+        nodes = ACCURACY_START_NODES if accuracy is not None else DEFAULT_NODES
+    scheme = (ACCURACY_SCHEME if accuracy is not None else model.default_scheme) if scheme is None else scheme
+    requested, scheme = scheme, (BOOTSTRAP_SCHEME if accuracy is not None else scheme)
+    final = Grid(model.T, nodes, scheme) if mesh is None else Grid.from_mesh(_mesh_times(mesh, model.T), scheme)
+    nodes = final.nodes
     options = DescentOptions(
         max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
         residual_tol=residual_tol,
@@ -127,7 +150,8 @@ def solve(
                           solver.coarsest_nodes, solver.ladder_steps)
     stages = []  # the functionals solved in turn: each grid, the first one also with the band if exact
     for count in grids:
-        functional = Functional(model, Grid(model.T, count, scheme), signs=signs, selection_scale=selection_scale)
+        grid = final if count == nodes else Grid(model.T, count, scheme)
+        functional = Functional(model, grid, signs=signs, selection_scale=selection_scale)
         if not stages and functional.p:
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
@@ -162,15 +186,110 @@ def solve(
         result = descend(functional, solver, search, dataclasses.replace(options, max_iter=0), None, first)
         result.status, result.message = "stationary", message
     result.history = history
-    result.iterations = history[-1].iteration
+    functional, result = _estimate(functional, result, solver, search, options, progress, estimate, accuracy, max_nodes,
+                                   requested)
+    result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     result.options = {**result.options, "max_iter": options.max_iter, "grids": grids,
-                      "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale}
+                      "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale,
+                      "uniform": functional.grid.uniform}
     if result.status == "max_iter":  # the whole budget, and any remark of the last descent after "; "
         remark = result.message.partition("; ")[2]
         result.message = (f"{options.max_iter} iterations spent" + (f" over the grids {grids}" if len(grids) > 1 else "")
                           + (f"; {remark}" if remark else ""))
     return result
+
+
+DEFAULT_NODES = 101  # `nodes` when not given
+ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
+ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
+BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
+
+
+def _mesh_times(mesh: Sequence[float] | np.ndarray, T: float) -> np.ndarray:
+    """The user's mesh as an array checked against the model's horizon."""
+    try:
+        tau = np.asarray(mesh, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("mesh", "increasing mesh times from 0 to T", mesh) from None
+    if tau.ndim != 1 or tau.size < 2 or tau[0] != 0.0 or not np.isclose(tau[-1], T, rtol=1e-14, atol=0.0):
+        raise InputError("mesh", f"increasing mesh times from 0 to T = {T:g}", f"shape {tau.shape}" if tau.ndim != 1
+                         else f"[{tau[0]:g}, …, {tau[-1]:g}]")
+    tau = tau.copy()
+    tau[-1] = T
+    return tau
+
+
+def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolver, search: LineSearch,
+              options: DescentOptions, progress: ProgressCallback | None, wanted: bool, accuracy: float | None,
+              max_nodes: int, scheme: str | Scheme) -> tuple[Functional, SolveResult]:
+    """The result with its switch times and error estimate; under `accuracy`, refined until
+    the estimate meets it (:mod:`qdframe.adaptive`). Every descent appends to the history.
+
+    Under `accuracy` the result comes from implicit Euler (BOOTSTRAP_SCHEME), which finds
+    sticking and sliding on coarse grids where higher-order collocation may not: its
+    switch times are settled first, then `scheme` takes over on that mesh."""
+    history = result.history
+    companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
+
+    def run(target: Functional, previous: SolveResult, own: bool) -> SolveResult:
+        """A descent on `target` from `previous` interpolated: the user's solver (`own`,
+        counted in the history) or gauss-newton for the estimate's bisected grid."""
+        used = history[-1].iteration
+        budget = max(options.max_iter - used, 0) if own else COMPANION_ITERATIONS
+        stage = dataclasses.replace(options, max_iter=budget)
+        shown = None if progress is None or not own else (
+            lambda record: progress(dataclasses.replace(record, iteration=record.iteration + used)))
+        out = descend(target, solver if own else companion_solver, search if own else companion_search, stage, shown,
+                      _interpolate(target, previous))
+        if own:
+            elapsed = history[-1].time_s
+            history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
+                           for r in out.history)
+        return out
+
+    note, found = "", adaptive.Estimate(None, None, None)
+    if accuracy is not None and result.status == "solved":
+        functional, result = adaptive.settle_switches(functional, result, lambda f, r, _: run(f, r, True))
+        if result.status == "solved" and make_scheme(scheme).name != functional.grid.scheme.name:
+            functional = Functional(functional.model, Grid.from_mesh(functional.grid.mesh_times, scheme),
+                                    signs=functional.signs, selection_scale=functional.selection_scale)
+            result = run(functional, result, True)
+        while result.status == "solved":
+            functional, result = adaptive.settle_switches(functional, result, lambda f, r, _: run(f, r, True))
+            found = adaptive.estimate(functional, result, lambda f, r, _: run(f, r, False))
+            if found.value is None or found.value <= accuracy:
+                break
+            tau = adaptive.refine(functional.grid, found.local, accuracy)
+            finer = Grid.from_mesh(tau, functional.grid.scheme)
+            if finer.nodes > max_nodes:
+                note = f"accuracy {accuracy:.1e} not met: error estimate {found.value:.1e} with {functional.grid.nodes} " \
+                       f"nodes; the next mesh ({finer.nodes}) would pass max_nodes = {max_nodes}"
+                break
+            functional = Functional(functional.model, finer, signs=functional.signs,
+                                    selection_scale=functional.selection_scale)
+            result = run(functional, result, True)
+        if found.value is not None and found.value <= accuracy:
+            note = f"error estimate {found.value:.1e} ≤ accuracy {accuracy:.1e}"
+    elif wanted:
+        found = adaptive.estimate(functional, result, lambda f, r, _: run(f, r, False))
+    if found.companion is not None and found.value is None:
+        note = f"no error estimate: the solve on the bisected grid ({found.companion.nodes} nodes) ended " \
+               f"{found.companion.status}"
+    result.history = history
+    result.error_estimate = found.value
+    result.switch_times = (switches.switch_times(functional, adaptive._xi(functional, result))
+                           if result.status == "solved" else np.zeros(0))
+    if accuracy is not None:
+        if result.status == "solved" and found.value is not None and found.value > accuracy:
+            result.status = "stationary"
+        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes}
+    if note:
+        result.message = f"{result.message}; {note}" if result.message else note
+    return functional, result
+
+
+COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected grid
 
 
 COARSEST_NODES = 11  # step T/10, the paper's final step in Section 7

@@ -67,6 +67,8 @@ class SolveResult:
     control_names: tuple[str, ...] = ()  # the model's names of the columns of u
     checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.certify
     binding_check: str = ""  # the check with the largest value/tol
+    error_estimate: float | None = None  # estimate of max_t |x(t) − x*(t)| (qdframe.adaptive); None: not solved
+    switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
 
     @property
     def solved(self) -> bool:

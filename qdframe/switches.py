@@ -1,0 +1,108 @@
+"""Switch times of a trajectory: where a Filippov selection changes regime.
+
+A sign term a·Sgn(s) has two regimes along a solution: *off* the surface (s ≠ 0, λ =
+sign s) and *on* it (s = 0 with λ ∈ [−1, 1]: sticking, sliding). On a mesh the change
+falls inside an interval and the scheme drops to first order there; a mesh point on the
+switch time restores its order (nosnoc's FESD gets the same by making the steps unknown).
+Each switch is located from the smooth side, by the polynomial (degree ≤ 2) through the
+last points of one regime, extrapolated to the event:
+
+- off → on (a block stops, a state reaches a sliding surface): s = 0, from the off side;
+- on → off (breakaway, leaving the surface): |λ| = 1, from the on side (s = 0 from the
+  off side when the on phase has a single point);
+- off → off with a sign change (crossing the surface): s = 0 between the two points.
+
+Where the scheme is exact on the pieces (Radau IIA on quadratic motion, implicit Euler
+on the velocity of a block) one location is exact; otherwise the switch is re-located on
+the mesh that has a point there, and converges (see :mod:`qdframe.adaptive`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .functional import Functional
+
+ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (s = 0 up to the solve's residuals)
+SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime
+
+
+def switch_times(functional: Functional, xi: np.ndarray) -> np.ndarray:
+    """The located switch times of the iterate ξ, increasing (empty without sign terms)."""
+    if not functional.p:
+        return np.zeros(0)
+    grid = functional.grid
+    y, lam = functional.arguments(xi), functional.selections(xi)
+    found: list[float] = []
+    for k, (b, term) in enumerate(functional.selection_terms):
+        s = functional._switch(functional.blocks[b], term, y)[0]
+        found += _locate(grid.t, grid.mesh, s, lam[:, k])
+    return np.unique(np.round(np.asarray(found, dtype=float), 14))
+
+
+def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> list[float]:
+    """The switch times of one sign term from its s and λ at the points t (mesh: the
+    indices of the mesh points). A change between the points a and a + 1 lies in the mesh
+    interval [t_first, t_last] around them; the polynomials use only points outside it,
+    where the scheme's solution is smooth."""
+    small = np.abs(s) <= ON_SURFACE * max(1.0, float(np.max(np.abs(s))))
+    on = small & (np.abs(lam) < 1.0 - SATURATED)
+    # 0 on the surface; ±1 off it, including a point with s = 0 and λ = ±1 (the switch point itself)
+    side = np.where(on, 0, np.where(small, np.sign(lam), np.sign(s))).astype(int)
+    changes = np.flatnonzero(side[1:] != side[:-1])  # between the points a and a + 1
+    out = []
+    for a in changes:
+        j = np.searchsorted(mesh, a + 1) - 1  # the mesh interval (mesh[j], mesh[j + 1]] holding a + 1
+        first, last = mesh[j], mesh[j + 1]
+        before, after = side[first], side[last]
+        if before != 0 and after != 0 and before != after:  # a crossing: s changes sign
+            points = np.append(_run(side, first, step=-1, length=2), last)
+            root = _root(t[points], s[points], t[first], t[last])
+        elif before != 0:  # off → on: s reaches 0, from the points up to the interval
+            run = _run(side, first, step=-1, length=4)
+            run = run[~small[run]][-3:]  # not the switch point itself: its s ≈ 0 is only as good as the solve
+            root = _root(t[run], s[run], t[first], t[last]) if run.size >= 2 else None
+        elif after != 0:  # on → off: λ reaches sign(s), from the on side, else s leaves 0, from the off side
+            run = _run(side, first, step=-1)
+            if run.size >= 2:
+                root = _root(t[run], lam[run] - after, t[first], t[last])
+            else:
+                run = _run(side, last, step=1)
+                root = _root(t[run], s[run], t[first], t[last]) if run.size >= 2 else None
+        else:  # the same regime at both ends: the change is inside the interval (a stage point)
+            root = None
+        if root is not None:
+            out.append(root)
+    return out
+
+
+def _run(side: np.ndarray, start: int, step: int, length: int = 3) -> np.ndarray:
+    """Up to `length` consecutive points from `start` (walking by `step`) in start's regime, in time order."""
+    points = [start]
+    while len(points) < length:
+        nxt = points[-1] + step
+        if not 0 <= nxt < side.size or side[nxt] != side[start]:
+            break
+        points.append(nxt)
+    return np.sort(np.asarray(points))
+
+
+def _root(t: np.ndarray, values: np.ndarray, lo: float, hi: float) -> float | None:
+    """The zero of the polynomial of degree ≤ 2 through (t, values) nearest to [lo, hi],
+    within one interval's length of it (a point classified by the solve's tolerances may
+    sit just before the switch), None if there is none."""
+    degree = min(2, t.size - 1)
+    if degree < 1:
+        return None
+    centre, scale = 0.5 * (lo + hi), max(hi - lo, 1e-300)
+    with warnings.catch_warnings():  # three points of one interval's size apart: well posed after scaling
+        warnings.simplefilter("ignore", np.exceptions.RankWarning)
+        coefficients = np.polyfit((t - centre) / scale, values, degree)
+    roots = np.roots(coefficients)
+    roots = roots[np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots.real))].real * scale + centre
+    roots = roots[(roots >= lo - (hi - lo)) & (roots <= hi + (hi - lo))]
+    if roots.size == 0:
+        return None
+    return float(roots[np.argmin(np.abs(roots - centre))])
