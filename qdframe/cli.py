@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--option", action="append", type=key_value, metavar="KEY=VALUE",
                        help="set a direction option, e.g. --option mu=1e-8 (repeatable; unknown keys list the known)")
     solve.add_argument("--line-search", help="line search (default: the direction's: armijo for gauss-newton, golden for native)")
-    solve.add_argument("--nodes", type=integer(2), default=101, help="grid nodes N ≥ 2 (default 101)")
+    solve.add_argument("--nodes", type=integer(2), help="grid nodes N ≥ 2 (default 101; with --accuracy, 21: the first mesh)")
     solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
     solve.add_argument("--continuation", type=continuation, metavar="auto|none|N,N,..",
                        help="coarser grids to solve on first, e.g. 11,101; auto: 11, 101, ... below N "
@@ -71,6 +71,13 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
     solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
                        help="`solved` needs every pointwise residual ≤ this (default 1e-8)")
+    solve.add_argument("--accuracy", type=positive_float,
+                       help="refine the mesh (switch times located) until the error estimate is ≤ this "
+                            "(scheme default radau-iia)")
+    solve.add_argument("--max-nodes", type=integer(3), default=100_001,
+                       help="the most points --accuracy may use (default 100001)")
+    solve.add_argument("--no-estimate", action="store_true",
+                       help="skip the error estimate (a second solve on the bisected mesh)")
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON (- : to stdout, the summary to stderr)")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -193,7 +200,9 @@ def _solve(args: argparse.Namespace) -> int:
     direction = with_options(make_direction(args.direction), dict(args.option or ()))
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
-        print(f"solving {model.name} on {args.nodes} nodes with {args.direction}, budget {args.max_iter} iterations …",
+        grid = (f"from {args.nodes or 21} points to accuracy {args.accuracy:g}" if args.accuracy
+                else f"on {args.nodes or 101} nodes")
+        print(f"solving {model.name} {grid} with {args.direction}, budget {args.max_iter} iterations …",
               end="", file=sys.stderr, flush=True)
     try:
         result = solve(
@@ -212,6 +221,9 @@ def _solve(args: argparse.Namespace) -> int:
             signs=args.signs,
             selection_scale=args.selection_scale,
             residual_tol=args.residual_tol,
+            accuracy=args.accuracy,
+            max_nodes=args.max_nodes,
+            estimate=not args.no_estimate,
         )
     finally:  # end the progress line, also before an error's line
         if show_progress:

@@ -190,7 +190,8 @@ def solve(
                                    requested)
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
-    result.options = {**result.options, "max_iter": options.max_iter, "grids": grids,
+    result.options = {**result.options, "max_iter": options.max_iter,
+                      "grids": grids + result.options.pop("meshes", []),  # then each refined mesh, if any
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale,
                       "uniform": functional.grid.uniform}
     if result.status == "max_iter":  # the whole budget, and any remark of the last descent after "; "
@@ -229,7 +230,7 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
     Under `accuracy` the result comes from implicit Euler (BOOTSTRAP_SCHEME), which finds
     sticking and sliding on coarse grids where higher-order collocation may not: its
     switch times are settled first, then `scheme` takes over on that mesh."""
-    history = result.history
+    history, meshes = result.history, []
     companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
 
     def run(target: Functional, previous: SolveResult, own: bool) -> SolveResult:
@@ -243,6 +244,7 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
         out = descend(target, solver if own else companion_solver, search if own else companion_search, stage, shown,
                       _interpolate(target, previous))
         if own:
+            meshes.append(target.grid.nodes)
             elapsed = history[-1].time_s
             history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
                            for r in out.history)
@@ -283,7 +285,7 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
     if accuracy is not None:
         if result.status == "solved" and found.value is not None and found.value > accuracy:
             result.status = "stationary"
-        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes}
+        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:
         result.message = f"{result.message}; {note}" if result.message else note
     return functional, result

@@ -105,9 +105,18 @@ def _colors() -> list[str]:
 
 
 def _trajectories(ax: Axes, result: SolveResult) -> None:
-    """x(t) by state name, and the unknown controls u(t) dashed (paper Figure 4)."""
+    """x(t) by state name with its error estimate as a band x ± error_estimate, the switch
+    times as dotted verticals, and the unknown controls u(t) dashed (paper Figure 4)."""
+    colors = _colors()
+    estimate = getattr(result, "error_estimate", None)
     for i, name in enumerate(result.state_names):
-        ax.plot(result.t, result.x[:, i], label=name)
+        color = colors[i % len(colors)]
+        ax.plot(result.t, result.x[:, i], color=color, label=name)
+        if estimate is not None:
+            ax.fill_between(result.t, result.x[:, i] - estimate, result.x[:, i] + estimate, color=color, alpha=0.25,
+                            lw=0, label=f"± error estimate {estimate:.1e}" if i == 0 else None)
+    for k, time in enumerate(getattr(result, "switch_times", ())):
+        ax.axvline(time, color="0.4", ls=":", lw=1.0, label="switch times" if k == 0 else None)
     ylabel = "state x(t)"
     if result.u is not None:
         m = result.u.shape[1]
@@ -258,11 +267,12 @@ def _history(ax: Axes, result: SolveResult) -> None:
             zeros += [h.iteration for h, v in zip(stage, values) if v == 0]
             ax.semilogy([h.iteration for h in stage], np.where(values > 0, values, np.nan), marker=".",
                         color=color, label=label if s == 0 else None)
-    for stage in stages[1:]:
+    for s, stage in enumerate(stages[1:]):
         first = stage[0]
         ax.axvline(first.iteration, color="0.5", ls=":", lw=1)
-        ax.annotate(f" new stage, N = {first.nodes}", (first.iteration, 0.98), xycoords=("data", "axes fraction"),
-                    va="top", fontsize="x-small", color="0.35")
+        # labels stacked down the axis: stages a few iterations apart (refined meshes) do not overprint
+        ax.annotate(f" N = {first.nodes}" if s else f" new stage, N = {first.nodes}", (first.iteration, 0.98 - 0.06 * (s % 8)),
+                    xycoords=("data", "axes fraction"), va="top", fontsize="x-small", color="0.35")
     if zeros:
         ax.plot(sorted(set(zeros)), [0.0] * len(set(zeros)), "v", color="k", transform=ax.get_xaxis_transform(),
                 clip_on=False, label="value 0 (off the log scale)")

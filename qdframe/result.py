@@ -90,6 +90,9 @@ class SolveResult:
             f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.3e}" if self.cost is not None else ""),
             "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
         ]
+        if self.error_estimate is not None:
+            lines.append(f"  error estimate {self.error_estimate:.2e}"
+                         + (f", switch times {', '.join(f'{t:.6g}' for t in self.switch_times)}" if len(self.switch_times) else ""))
         if self.solution_error is not None:
             lines.append(f"  error vs the known solution {self.solution_error:.2e}")
         if self.message:
@@ -150,6 +153,8 @@ class SolveResult:
         attrs.update({f"residual_{name}": value for name, value in self.residuals().items()})
         if self.solution_error is not None:
             attrs["solution_error"] = float(self.solution_error)
+        if self.error_estimate is not None:
+            attrs["error_estimate"] = float(self.error_estimate)
         return xr.Dataset(variables, coords=coords, attrs=attrs)
 
     def to_dict(self) -> dict[str, Any]:
@@ -170,7 +175,8 @@ class SolveResult:
             ("model", self.model),
             ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
             ("direction / line search", f"{self.direction} / {self.line_search}"),
-            ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []), self.nodes)),
+            ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []), self.nodes)
+             + ("  (nonuniform mesh)" if self.options.get("uniform") is False else "")),
             ("scheme, signs", f"{self.options.get('scheme', '—')}, {self.options.get('signs', '—')}"),
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
@@ -187,6 +193,10 @@ class SolveResult:
             if check is not None:
                 text += f"  (tol {check['tol']:.1e}{', binds' if name == self.binding_check else ''})"
             rows.append((labels[name], text))
+        rows.append(("error estimate", "—" if self.error_estimate is None else
+                     f"{self.error_estimate:.3e}  (max |x − x*| over the points, from the bisected mesh)"))
+        if len(self.switch_times):
+            rows.append(("switch times", ", ".join(f"{t:.10g}" for t in self.switch_times)))
         if self.solution_error is not None:
             rows.append(("error vs known solution", f"{self.solution_error:.3e}"))
         width = max(len(k) for k, _ in rows)
