@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .directions.base import DirectionSolver
+from .diagnosis import unmet_conditions
 from .errors import BackendError, InputError, ModelOutputError
 from .functional import Functional
 from .grid import Grid
@@ -425,6 +426,9 @@ def _result(functional, solver, search, options, xi, status, message, history, e
     elif terms.objective <= options.tol and terms.I <= options.tol:
         excess = pointwise_excess(functional, xi, options.residual_tol)
         message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {excess}"
+    if status in ("stationary", "max_iter") and terms.I > options.tol:  # I bounded away from 0: name where it sits
+        diagnosis = unmet_conditions(functional, xi, options.residual_tol)
+        message += f"; {diagnosis}" if diagnosis else ""
     x, z = functional.split(xi)
     exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
