@@ -11,6 +11,7 @@ import numpy as np
 
 from . import adaptive, certify, switches
 from .directions.base import DirectionSolver
+from .diagnosis import unmet_conditions
 from .errors import BackendError, InputError, ModelOutputError
 from .functional import Functional
 from .grid import Grid, make_scheme
@@ -526,6 +527,9 @@ def _result(functional, solver, search, options, xi, status, message, history, e
     found = certify.checks(functional, xi, options.residual_tol)
     if status != "solved" and terms.objective <= options.tol and terms.I <= options.tol:
         message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {certify.failures(found)}"
+    if status in ("stationary", "max_iter") and terms.I > options.tol:  # I bounded away from 0: name where it sits
+        diagnosis = unmet_conditions(functional, xi, options.residual_tol)
+        message += f"; {diagnosis}" if diagnosis else ""
     x, z = functional.split(xi)
     exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))

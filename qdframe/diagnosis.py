@@ -1,0 +1,145 @@
+"""Which conditions of a problem an unsolved iterate leaves unmet, and by how much.
+
+When a solve stops with I = φ + χ + ω + υ + σ bounded away from 0 (Fominyh,
+arXiv:2406.15384, (3.16)), its iterate is a least-squares compromise between conditions
+that cannot all hold: :func:`unmet_conditions` says where I sits, in the model's names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .functional import DistanceSides, Functional
+from .model import SetBlock
+
+SHARE = 0.1  # a condition is named when its part of I is at least this fraction of I
+MAX_CLAUSES = 3
+GAP_TOL = 1e-8  # an end or periodic condition missed by more than this is named even with a small part of I
+EMPTY_TOL = 1e-8  # F_b is called empty where c(F, ψ) + c(F, −ψ) < −EMPTY_TOL (relative to 1 + |ℓ|)
+
+
+@dataclass(frozen=True)
+class Clause:
+    """One condition's part of I at an iterate, and the clause that names it."""
+
+    part: float  # its contribution to I
+    text: str
+    kind: str  # "inclusion" (φ), "end", "periodic" (χ), "surface" (ω), "consistency" (υ), "selection" (σ)
+    gap: float = 0.0  # end and periodic conditions: |x_j(T) − target|, read from x
+
+
+def unmet_conditions(functional: Functional, xi: np.ndarray, gap_tol: float = GAP_TOL) -> str:
+    """The conditions the iterate `xi` leaves unmet, as "; "-separated clauses ("" when I = 0).
+
+    I is split per condition (:func:`condition_parts`): χ (paper (3.14)) per end condition
+    x_j(T) = xT_j and per periodic condition x_i(T) = x_i(0), φ (3.13) per block of F,
+    ω (3.14') per surface equation, υ (3.17) per state, σ per sign term. Those carrying at
+    least SHARE of I are named, largest first, at most MAX_CLAUSES. When none of them is an
+    end or periodic condition, the largest one missed by more than `gap_tol` takes the last
+    place: a target outside the reachable set puts most of I on the dynamics the iterate
+    breaks to approach it (φ, υ, σ), little on χ itself.
+
+    An end condition gives its target, the value x_j at the last node and the gap between
+    them; this is the compromise's value, so where the dynamics carry a share of I it says
+    that the value is reached "only by violating the dynamics" (the nearest value the
+    inclusion itself reaches may be farther). A pointwise condition gives its largest violation and
+    the t of it; an inclusion adds "the set may be empty" where F_b(x) certainly is.
+    """
+    clauses = condition_parts(functional, xi)
+    total = sum(clause.part for clause in clauses)
+    if not (np.isfinite(total) and total > 0):
+        return ""
+    ranked = sorted(clauses, key=lambda clause: -clause.part)
+    named = [clause for clause in ranked if clause.part >= SHARE * total][:MAX_CLAUSES] or ranked[:1]
+    missed = [clause for clause in ranked if clause.kind in ("end", "periodic") and clause.gap > gap_tol]
+    if missed and not any(clause.kind in ("end", "periodic") for clause in named):
+        named = named[: MAX_CLAUSES - 1] + missed[:1]
+    texts = [clause.text for clause in named]
+    ends = [index for index, clause in enumerate(named) if clause.kind == "end"]
+    if ends:  # once, after the last end condition named
+        dynamics = sum(clause.part for clause in clauses if clause.kind in ("inclusion", "consistency", "selection"))
+        texts[ends[-1]] += ((", only by violating the dynamics" if dynamics >= SHARE * total else "")
+                            + f"; {'they' if len(ends) > 1 else 'it'} may lie outside the reachable set")
+    return "; ".join(texts)
+
+
+def condition_parts(functional: Functional, xi: np.ndarray) -> list[Clause]:
+    """Every condition's part of I at `xi` with its clause; the parts sum to I.
+
+    φ: ½ Σ_k w_k h_b² per block b (h_b = dist(z_b, F_b(x))); χ: ½ r_j² per end or periodic
+    condition (r = :meth:`Functional.end_residual`); ω: ½ Σ_k w_k e_i² per surface
+    equation; υ: ½ Σ_k w_k (x_i − x_i(0) − ∫x_i')² per state; σ: ½ Σ_k w_k r_i² per selection.
+    """
+    model, t, w = functional.model, functional.grid.t, functional.weights
+    names = list(model.state_names)
+    x, z = functional.split(xi)
+    y = functional.arguments(xi)
+
+    def at(values: np.ndarray) -> str:
+        """The largest of `values` (N,) and its t."""
+        k = int(np.argmax(values))
+        return f"{values[k]:.1e} at t = {t[k]:.4g}"
+
+    def integral(values: np.ndarray) -> float:
+        return 0.5 * float(np.sum(w * values**2))
+
+    clauses: list[Clause] = []
+    for block, sides in zip(functional.blocks, functional.distance_sides(xi)):  # φ
+        ells = [ell for ell, _, _ in sides.sides]
+        h = np.abs(ells[0]) if sides.equation else np.maximum(0.0, np.max(ells, axis=0))
+        label = ", ".join(names[c] for c in block.coords)
+        label = f"{label}'" if block.size == 1 else f"({label})'"
+        text = f"inclusion for {label}{f' ({block.name})' if block.name else ''} not met: distance {at(h)}"
+        empty = _empty(functional, block, sides, y, z)
+        if empty[int(np.argmax(h))]:
+            text += "; the set may be empty there"
+        elif empty.any():
+            text += f"; the set may be empty at t = {t[int(np.argmax(empty))]:.4g}"
+        clauses.append(Clause(integral(h), text, "inclusion"))
+    end = functional.end_residual(xi)
+    for j, target, residual in zip(functional.end, model.end_values, end):  # χ
+        gap = abs(x[-1, j] - target)
+        clauses.append(Clause(0.5 * float(residual) ** 2, f"end condition {names[j]}(T) = {target:g} not reached: "
+                              f"nearest {_number(x[-1, j])} (gap {gap:.1e})", "end", gap))
+    for i, residual in zip(functional.periodic, end[functional.end.size:]):  # χ, periodic
+        gap = abs(x[-1, i] - x[0, i])
+        clauses.append(Clause(0.5 * float(residual) ** 2, f"periodic condition {names[i]}(T) = {names[i]}(0) not met: "
+                              f"{names[i]}(0) = {_number(x[0, i])}, {names[i]}(T) = {_number(x[-1, i])} "
+                              f"(gap {gap:.1e})", "periodic", gap))
+    if functional.surface is not None:  # ω
+        e = np.abs(functional.surface_values(xi)[0])
+        for i in range(e.shape[1]):
+            clauses.append(Clause(integral(e[:, i]), f"surface e{i + 1} = 0 not met: max |e{i + 1}| {at(e[:, i])}",
+                                  "surface"))
+    gaps = np.abs(functional.consistency(xi))  # υ
+    for i, name in enumerate(names):
+        clauses.append(Clause(integral(gaps[:, i]),
+                              f"consistency {name} = {name}(0) + ∫{name}' not met: max |error| {at(gaps[:, i])}",
+                              "consistency"))
+    if functional.p:  # σ
+        r = np.abs(functional.selection_residual(xi)[0])
+        for k, (_, term) in enumerate(functional.selection_terms):
+            clauses.append(Clause(integral(r[:, k]), f"selection of {term.name} not in Sgn(s): "
+                                  f"max |λ − clip(λ + c·s, −1, 1)| {at(r[:, k])}", "selection"))
+    return clauses
+
+
+def _empty(functional: Functional, block: SetBlock, sides: DistanceSides, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The nodes where F_b(y) is certainly empty, (N,) bool: ℓ(ψ) + ℓ(−ψ) = −c(F, ψ) − c(F, −ψ) > 0
+    for the block's ψ (a point p of F gives c(F, ±ψ) ≥ ±<p, ψ>). One coordinate: ψ = ±1, an
+    interval [lo, hi] with lo > hi; several: ψ*, where the distance is found (ℓ(−ψ*) evaluated)."""
+    if sides.equation:  # a single point
+        return np.zeros(y.shape[0], dtype=bool)
+    ells = [ell for ell, _, _ in sides.sides]
+    if len(ells) == 2:
+        total = ells[0] + ells[1]
+    else:
+        total = ells[0] + functional._side(block, y, z, -sides.sides[0][2]).ell
+    return total > EMPTY_TOL * (1.0 + np.abs(ells[0]))
+
+
+def _number(value: float) -> str:
+    """A value reached: 1.000, or 1.000e-05 and 1.000e+06 off [1e-3, 1e5)."""
+    return f"{value:.3f}" if value == 0 or 1e-3 <= abs(value) < 1e5 else f"{value:.3e}"
