@@ -6,6 +6,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -95,9 +96,17 @@ def solve(
     11, 101, 1001, … below `nodes` (:func:`grid_schedule`), "none" (or ()) the one grid,
     None the direction's own (`default_continuation`: "auto" for both, from the
     direction's `coarsest_nodes` with its `ladder_steps`: 11, 101, 1001, … for the paper's
-    min-norm directions, 101, 301, 1001, 3001, … for gauss-newton). `max_iter` is the budget of all grids together;
-    the history and `iterations` cover all, each record naming its grid (`nodes`); each
-    grid after the first adds a record of its interpolated start (same iteration number).
+    min-norm directions, 101, 301, 1001, 3001, … for gauss-newton). Each grid starts from
+    the lowest, on that grid, of the previous stage's iterate, the start that stage had (if
+    it came from a stage) and the model's own start. `max_iter` is the budget of all G
+    grids together: a coarser grid spends at most max(1, max_iter // (2G)) (its band start
+    included) and leaves one iteration to each later grid, so the requested grid gets the
+    rest: at least half when max_iter ≥ 2G and ≥ 1 when max_iter ≥ 1 (a coarse grid left
+    no iteration is skipped). A stage before the last only provides a start and stops on
+    10·ε. The history and `iterations` cover all grids, each record naming its grid
+    (`nodes`); each grid after the first adds a record of its start (same iteration
+    number); `options["iterations_per_grid"]` is aligned with `options["grids"]`, and a
+    status other than `solved` after several grids gives it in the message.
 
     `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's;
     "implicit-euler"; "radau-iia", where `nodes` counts mesh and stage points and is odd);
@@ -156,27 +165,42 @@ def solve(
         if not stages and functional.p:
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
-    start, history, result = None, [], None
+    history, result = [], None
+    earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
+    per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
+    share = max(1, options.max_iter // (2 * len(grids)))  # a coarse grid's cap: the requested grid keeps ≥ half
     for functional in stages:
         count = functional.grid.nodes
-        if result is not None:  # the previous stage's iterate, unless the model's start is better
-            start = _interpolate(functional, result)
-            first = functional.initial_point()
-            if functional.objective(first) < functional.objective(start):
-                start = first
+        index = grids.index(count)
+        last = functional is stages[-1]
+        later = len(grids) - 1 - index
+        budget = options.max_iter - sum(per_grid) - later  # one iteration kept for each later grid
+        if later:
+            budget = min(budget, share - per_grid[index])
+        if functional.signs != signs:  # the band only starts the exact solve: a short run, one iteration left to it
+            budget = min(budget - 1, BAND_START_ITERATIONS)
+        if budget <= 0 and not last:  # no iteration here: no result from this grid
+            continue
+        start, from_stage = None, False
+        if earlier:  # the lowest here of the earlier iterates (the last one first on a tie) and the model's start
+            candidates = [_interpolate(functional, source) for source in earlier] + [functional.initial_point()]
+            for number, candidate in enumerate(candidates):
+                value = functional.objective(candidate)
+                if number == 0 or value < lowest:
+                    start, lowest, from_stage = candidate, value, number < len(earlier)
         used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
 
         def shift(record: IterationRecord, used: int = used, elapsed: float = elapsed) -> IterationRecord:
             """A record counted over all grids so far."""
             return dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
 
-        budget = options.max_iter - used
-        if functional.signs != signs:  # the band only starts the exact solve: a short run
-            budget = min(budget, BAND_START_ITERATIONS)
-        stage = dataclasses.replace(options, max_iter=budget)
+        # a stage before the last only provides a start: it stops on the looser ε
+        stage = dataclasses.replace(options, max_iter=budget, eps=options.eps * (1 if last else COARSE_EPS_FACTOR))
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, solver, search, stage, shown, start)
         history += [shift(record) for record in result.history]
+        per_grid[index] += result.iterations
+        earlier = [result] + ([_iterate(functional, start)] if from_stage and result.iterations else [])
         if result.status == "failed":
             if functional is not stages[-1]:
                 result.message = f"on the grid of {count} nodes{' (band start)' if functional.signs != signs else ''}: {result.message}"
@@ -191,14 +215,18 @@ def solve(
                                    requested)
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
-    result.options = {**result.options, "max_iter": options.max_iter,
-                      "grids": grids + result.options.pop("meshes", []),  # then each refined mesh, if any
+    refined = result.options.pop("meshes", [])  # (nodes, iterations) of each mesh an accuracy request solved on
+    grids, per_grid = grids + [count for count, _ in refined], per_grid + [used for _, used in refined]
+    result.options = {**result.options, "max_iter": options.max_iter, "grids": grids, "iterations_per_grid": per_grid,
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale,
                       "uniform": functional.grid.uniform}
+    spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
     if result.status == "max_iter":  # the whole budget, and any remark of the last descent after "; "
         remark = result.message.partition("; ")[2]
-        result.message = (f"{options.max_iter} iterations spent" + (f" over the grids {grids}" if len(grids) > 1 else "")
+        result.message = (f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
                           + (f"; {remark}" if remark else ""))
+    elif result.status != "solved" and len(grids) > 1:
+        result.message += f"; {result.iterations} iterations: {spent}"
     return result
 
 
@@ -245,7 +273,7 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
         out = descend(target, solver if own else companion_solver, search if own else companion_search, stage, shown,
                       _interpolate(target, previous))
         if own:
-            meshes.append(target.grid.nodes)
+            meshes.append((target.grid.nodes, out.iterations))
             elapsed = history[-1].time_s
             history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
                            for r in out.history)
@@ -297,6 +325,7 @@ COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected
 
 COARSEST_NODES = 11  # step T/10, the paper's final step in Section 7
 BAND_START_ITERATIONS = 10  # at most this many iterations of the band start of an exact solve
+COARSE_EPS_FACTOR = 10  # a stage that only starts a later one stops when every node's deviation is ≤ 10·ε
 
 
 def grid_schedule(nodes: int, continuation: Sequence[int] | str, coarsest: int = COARSEST_NODES,
@@ -340,6 +369,13 @@ def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
     u = None if previous.u is None else on_grid(previous.u)
     selections = None if previous.selections is None else on_grid(previous.selections)  # None: the band's
     return functional.pack(on_grid(previous.x), on_grid(previous.z), u, selections)
+
+
+def _iterate(functional: Functional, xi: np.ndarray) -> SimpleNamespace:
+    """ξ on `functional`'s grid as `_interpolate` reads a result: t, x, z, u, selections."""
+    x, z = functional.split(xi)
+    return SimpleNamespace(t=functional.grid.t, x=x, z=z, u=functional.controls(xi) if functional.m else None,
+                           selections=functional.selections(xi) if functional.p else None)
 
 
 def descend(
