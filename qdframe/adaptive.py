@@ -6,7 +6,8 @@ gauss-newton. With x_h and x_{h/2} the two discrete solutions and p ≥ 1 the or
 x_h − x* ≈ (x_h − x_{h/2})·2^p/(2^p − 1), a factor ≤ 2 for every p ≥ 1; the estimate
 takes 2.5 (p = 1 with a quarter's margin for the higher-order terms on coarse grids):
 
-    error_estimate = 2.5·max_t |x_h(t) − x_{h/2}(t)|   over the points of the result's grid,
+    error_estimate = 2.5·max_t |x_h(t) − x_{h/2}(t)| + consistency error + 8ε·max(1, |x|)
+                                                       over the points of the result's grid,
 
 1.25 times the error in the limit for a first-order scheme and 2.2 times for p = 3 on
 smooth problems, and still on the safe side where a switch inside an interval drops
@@ -17,9 +18,9 @@ does not end `solved` (the message says so).
 
 **Accuracy.** `accuracy=` refines until the estimate meets it: each round moves mesh
 points onto the located switch times (:mod:`qdframe.switches`) and re-solves until they
-settle, estimates, and splits every interval whose share of the error is above its share
-of the target (local error, the change of x_h − x_{h/2} within the interval, above
-accuracy·h_k/T), until the estimate is ≤ accuracy or the next mesh would pass
+settle, estimates, and lays out a new mesh that equidistributes the local error (the
+change of x_h − x_{h/2} within each interval), sized to meet the accuracy
+(:func:`refine`), until the estimate is ≤ accuracy or the next mesh would pass
 `max_nodes`.
 """
 
@@ -35,9 +36,11 @@ from .result import SolveResult
 from .switches import switch_times
 
 ESTIMATE_FACTOR = 2.5  # 2^p/(2^p − 1) ≤ 2 for every order p ≥ 1, with a quarter's margin
+ROUNDING = 8 * np.finfo(float).eps  # relative: the estimate never claims less than rounding
 SWITCH_SETTLED = 1e-12  # relative to T: a switch time that moves less between rounds has settled
 SWITCH_ROUNDS = 6  # at most this many re-solves to settle the switch times on one mesh
-MAX_SPLIT = 8  # an interval is cut into at most this many per round
+REFINE_MARGIN = 0.85  # a refined mesh aims at this fraction of the accuracy
+MONITOR_FLOOR = 0.05  # the error density never falls below this fraction of its mean
 
 Resolve = Callable[[Functional, SolveResult, int], SolveResult]
 
@@ -61,7 +64,9 @@ def estimate(functional: Functional, result: SolveResult, resolve: Resolve) -> E
         return Estimate(None, None, companion)
     grid = functional.grid
     difference = dense(finer.grid, companion.x, grid.t) - result.x  # (N, n)
-    value = ESTIMATE_FACTOR * float(np.max(np.abs(difference)))
+    # plus what the two discrete solutions cannot see: x's own consistency error and rounding
+    floor = result.consistency_error + ROUNDING * max(1.0, float(np.max(np.abs(result.x))))
+    value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + floor
     # local error of interval k: how far x_h − x_{h/2} moves within it, from its first mesh point
     start = grid.mesh[np.searchsorted(grid.mesh, np.arange(1, grid.nodes)) - 1]  # base(p) of the points p ≥ 1
     moved = np.max(np.abs(difference[1:] - difference[start]), axis=1)
@@ -126,23 +131,27 @@ def settle_switches(functional: Functional, result: SolveResult, resolve: Resolv
     return functional, result
 
 
-def refine(grid: Grid, local: np.ndarray, accuracy: float) -> np.ndarray:
-    """The mesh with each interval whose local error is above accuracy·h_k/T split into
-    m_k = ⌈(local_k/target_k)^{1/(p+1)}⌉ pieces (at most MAX_SPLIT; p the scheme's order);
-    when none is, the intervals carrying the larger half of the total are bisected."""
+def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> np.ndarray:
+    """A new mesh that equidistributes the local error (de Boor's monitor).
+
+    With p the scheme's order, interval k's local error behaves as (M_k·h_k)^{p+1}, so
+    M_k = local_k^{1/(p+1)}/h_k is the error density. K' intervals with equal shares of
+    ∫M give a sum of local errors (∫M)^{p+1}/K'^p; K' is chosen so that this sum, scaled by
+    estimate/Σ local (how much of the sum reaches the global error), is REFINE_MARGIN·
+    accuracy, and at least 1.25·K. The mesh points follow by inverting the cumulative ∫M.
+    """
     tau = grid.mesh_times
     h = np.diff(tau)
-    target = accuracy * h / grid.T
-    ratio = local / target
-    split = np.where(ratio > 1.0, np.ceil(ratio ** (1.0 / (grid.scheme.order + 1))), 1).astype(int)
-    if not np.any(split > 1):
-        order = np.argsort(local)[::-1]
-        heavy = order[: int(np.searchsorted(np.cumsum(local[order]), 0.5 * np.sum(local))) + 1]
-        split[heavy] = 2
-    split = np.clip(split, 1, MAX_SPLIT)
-    interval = np.repeat(np.arange(h.size), split)
-    piece = np.arange(interval.size) - np.repeat(np.cumsum(split) - split, split)  # 0 … m_k − 1 in each
-    return np.append(tau[interval] + h[interval] * piece / split[interval], tau[-1])
+    p = grid.scheme.order
+    density = np.power(np.maximum(local, 0.0), 1.0 / (p + 1)) / h
+    density = density + MONITOR_FLOOR * float(np.sum(density * h)) / grid.T + 1e-300  # no interval spans all
+    mass = np.concatenate([[0.0], np.cumsum(density * h)])
+    reach = estimate / max(float(np.sum(local)), 1e-300)
+    wanted = (mass[-1] ** (p + 1) * reach / (REFINE_MARGIN * accuracy)) ** (1.0 / p)
+    count = int(min(max(np.ceil(wanted), np.ceil(1.25 * h.size)), 4 * h.size))
+    finer = np.interp(np.linspace(0.0, mass[-1], count + 1), mass, tau)
+    finer[0], finer[-1] = 0.0, grid.T
+    return finer
 
 
 def _like(functional: Functional, grid: Grid) -> Functional:

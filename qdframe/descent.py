@@ -291,7 +291,8 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
             found = adaptive.estimate(functional, result, lambda f, r, _: run(f, r, False))
             if found.value is None or found.value <= accuracy:
                 break
-            tau = adaptive.refine(functional.grid, found.local, accuracy)
+            tau = adaptive.refine(functional.grid, found.local, accuracy, found.value)
+            tau = adaptive.pin(tau, switches.switch_times(functional, adaptive._xi(functional, result)))  # kept on a point
             finer = Grid.from_mesh(tau, functional.grid.scheme)
             if finer.nodes > max_nodes:
                 note = f"accuracy {accuracy:.1e} not met: error estimate {found.value:.1e} with {functional.grid.nodes} " \

@@ -62,7 +62,8 @@ def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> 
             root = _root(t[points], s[points], t[first], t[last])
         elif before != 0:  # off → on: s reaches 0, from the points up to the interval
             run = _run(side, first, step=-1, length=4)
-            run = run[~small[run]][-3:]  # not the switch point itself: its s ≈ 0 is only as good as the solve
+            clear = run[~small[run]]  # not the switch point itself (its s ≈ 0 is only as good as the solve) …
+            run = clear[-3:] if clear.size >= 3 else run[-3:]  # … unless fewer than three points are left
             root = _root(t[run], s[run], t[first], t[last]) if run.size >= 2 else None
         elif after != 0:  # on → off: λ reaches sign(s), from the on side, else s leaves 0, from the off side
             run = _run(side, first, step=-1)

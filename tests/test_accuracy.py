@@ -1,0 +1,125 @@
+"""Certified accuracy (issue 14): nonuniform meshes, the pointwise checks of `solved`, the
+error estimate against exact solutions, located switch times and `accuracy=`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe.errors import InputError
+from qdframe.grid import Grid
+
+SUITE = ("block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
+         "two-surface-sliding", "coulomb-block")
+SMOOTH = ("slide-on-line", "sliding-mode", "paper-7.1")  # exact solutions without a switch
+EXACT = SUITE + ("paper-7.1", "sliding-mode")
+
+
+# ----------------------------------------------------------------------- nonuniform meshes
+@pytest.mark.parametrize("scheme", ["trapezoid", "implicit-euler", "radau-iia"])
+def test_a_nonuniform_mesh_integrates_as_its_rule_says(scheme):
+    tau = np.array([0.0, 0.1, 0.15, 0.5, 0.7, 1.3, 2.0])
+    grid = Grid.from_mesh(tau, scheme)
+    assert grid.nodes == grid.scheme.stages * (tau.size - 1) + 1 and grid.T == 2.0 and not grid.uniform
+    assert np.array_equal(grid.t[grid.mesh], tau)
+    assert grid.weights.sum() == pytest.approx(2.0 + (grid.weights[0] if scheme != "trapezoid" else 0.0))
+    exact_degree = {"trapezoid": 1, "implicit-euler": 0, "radau-iia": 2}[scheme]  # z of this degree integrates exactly
+    z = grid.t ** exact_degree
+    assert grid.cumulative(z)[grid.mesh] == pytest.approx(tau ** (exact_degree + 1) / (exact_degree + 1), abs=1e-14)
+    y = np.random.default_rng(1).normal(size=grid.nodes)
+    assert y @ grid.cumulative(z) == pytest.approx(grid.cumulative_adjoint(y) @ z, rel=1e-12)
+
+
+def test_the_bisected_grid_keeps_every_mesh_point():
+    grid = Grid.from_mesh([0.0, 0.3, 1.0], "radau-iia")
+    finer = grid.bisected()
+    assert np.allclose(finer.mesh_times, [0.0, 0.15, 0.3, 0.65, 1.0]) and finer.nodes == 9
+
+
+@pytest.mark.parametrize("mesh, field", [([0.0, 0.5, 0.4, 3.0], "mesh"), ([0.1, 3.0], "mesh"), ([0.0, 2.0], "mesh")])
+def test_a_bad_mesh_is_named(mesh, field):
+    with pytest.raises(InputError, match=field):
+        qdframe.solve("block-stop-stick", mesh=mesh)
+
+
+def test_a_mesh_point_on_the_stop_makes_implicit_euler_exact_in_velocity():
+    """block-stop-stick stops at t = 1: with a mesh point there, implicit Euler's velocity is
+    exact (v' is constant on each piece) and the located stop is 1."""
+    tau = np.concatenate([np.linspace(0, 1, 8), np.linspace(1, 3, 12)[1:]])
+    result = qdframe.solve("block-stop-stick", mesh=tau)
+    exact = qdframe.load_model("block-stop-stick").exact_solution(result.t)
+    assert result.solved and result.nodes == tau.size and result.options["uniform"] is False
+    assert np.max(np.abs(result.x[:, 1] - exact[:, 1])) <= 1e-9
+    assert result.switch_times == pytest.approx([1.0], abs=1e-9)
+
+
+# ------------------------------------------------------------------------ certification
+def test_solved_reports_every_check_against_a_tolerance_scaled_to_the_states():
+    result = qdframe.solve("block-stop-stick", nodes=101)
+    assert result.solved
+    scale_x = max(1.0, float(np.max(np.abs(result.x))))
+    assert set(result.checks) == {"boundary", "inclusion", "selection", "consistency"}
+    assert result.checks["consistency"]["tol"] == pytest.approx(1e-8 * scale_x)
+    assert result.checks["selection"]["tol"] == 1e-8
+    assert all(c["value"] <= c["tol"] for c in result.checks.values())
+    worst = max(result.checks, key=lambda k: result.checks[k]["value"] / result.checks[k]["tol"])
+    assert result.binding_check == worst
+    assert result.x[0] == pytest.approx(result.x[0]) and np.array_equal(result.x[0], [0.0, 2.0])
+
+
+def test_the_boundary_error_is_read_from_x_itself():
+    result = qdframe.solve("block-stop-stick-bvp", nodes=101)
+    assert result.solved
+    assert result.boundary_error == pytest.approx(abs(result.x[-1, 0] - 1.0), abs=0.0)
+
+
+# ---------------------------------------------------------------------- error estimates
+@pytest.mark.parametrize("nodes", [101, 1001, 10001])
+@pytest.mark.parametrize("name", EXACT)
+def test_a_solved_result_has_its_true_error_within_its_estimate(name, nodes):
+    result = qdframe.solve(name, nodes=nodes)
+    assert result.solved, result.message
+    assert result.error_estimate is not None
+    assert result.solution_error <= result.error_estimate
+    if name in SMOOTH and result.solution_error > 1e-12:  # above rounding: within a factor 3
+        assert result.error_estimate <= 3 * result.solution_error
+
+
+def test_no_estimate_when_skipped_or_not_solved():
+    assert qdframe.solve("block-stop-stick", nodes=101, estimate=False).error_estimate is None
+    unfinished = qdframe.solve("block-stop-stick", nodes=101, max_iter=1)
+    assert unfinished.status == "max_iter" and unfinished.error_estimate is None and unfinished.switch_times.size == 0
+
+
+# ---------------------------------------------------------------- switches and accuracy
+@pytest.mark.parametrize("name", SUITE)
+def test_accuracy_locates_the_switches_and_meets_the_target_with_few_nodes(name):
+    model = qdframe.load_model(name)
+    result = qdframe.solve(model, accuracy=1e-6)
+    assert result.solved and result.error_estimate <= 1e-6, result.message
+    assert result.solution_error <= 1e-6
+    assert result.nodes < 200
+    exact = np.asarray(type(model).switch_times)
+    assert result.switch_times.size == exact.size
+    assert np.max(np.abs(result.switch_times - exact), initial=0.0) <= 1e-8
+    assert "error estimate" in result.message and result.options["accuracy"] == 1e-6
+
+
+@pytest.mark.parametrize("name", ["paper-7.1", "sliding-mode"])
+def test_accuracy_on_smooth_problems(name):
+    result = qdframe.solve(name, accuracy=1e-6)
+    assert result.solved and result.solution_error <= 1e-6 <= 1e-6 and result.error_estimate <= 1e-6
+
+
+def test_an_unmet_accuracy_says_why():
+    result = qdframe.solve("slide-on-line", accuracy=1e-12, max_nodes=200, scheme="implicit-euler")
+    assert result.status == "stationary"
+    assert "accuracy 1.0e-12 not met" in result.message and "max_nodes = 200" in result.message
+
+
+def test_accuracy_input_is_checked():
+    with pytest.raises(InputError, match="accuracy"):
+        qdframe.solve("slide-on-line", accuracy=-1.0)
+    with pytest.raises(InputError, match="max_nodes"):
+        qdframe.solve("slide-on-line", accuracy=1e-3, max_nodes=2)
