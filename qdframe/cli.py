@@ -111,6 +111,11 @@ def build_parser() -> argparse.ArgumentParser:
     bench_friction.add_argument("--schemes", type=names, metavar="NAME,NAME,..",
                                 help="schemes (default: each model's own)")
     bench_friction.add_argument("--models", type=names, metavar="NAME,NAME,..", help="models (default: the suite)")
+    bench_accuracy = benches.add_parser("accuracy", help="nodes and time to a true error: uniform grids against accuracy=")
+    bench_accuracy.add_argument("--models", type=names, metavar="NAME,NAME,..",
+                                help="models (default: every one with an exact solution)")
+    bench_accuracy.add_argument("--targets", type=vector, default=(1e-4, 1e-6), metavar="E,E,..",
+                                help="true errors to reach (default 1e-4,1e-6)")
     add_run_parser(benches)
 
     add_check_parser(commands)
@@ -143,7 +148,7 @@ def _main(argv: list[str], debug: bool) -> int:
             return _simulate(args)
         if args.command == "bench":
             commands = {"run": main_run, "hard": lambda _args: _bench_hard(), "directions": _bench_directions,
-                        "friction": _bench_friction}
+                        "friction": _bench_friction, "accuracy": _bench_accuracy}
             return commands[args.bench_command](args)
         if args.command == "check-model":
             return main_check(args)
@@ -289,6 +294,13 @@ def _bench_friction(args: argparse.Namespace) -> int:
     rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,), progress=True)
     print(friction.table(rows))
     return 0  # a measurement: the table says which rows are not solved
+
+
+def _bench_accuracy(args: argparse.Namespace) -> int:
+    from .benchmarks import accuracy
+
+    print(accuracy.table(accuracy.run(args.models, args.targets, progress=True)))
+    return 0  # a measurement: the table says which targets are not met
 
 
 def _bench_hard() -> int:
