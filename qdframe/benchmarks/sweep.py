@@ -321,7 +321,7 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
     model = resolve_model(case.model)
     solver = make_direction(case.direction)
     timed = _Deadline(solver, case.time_limit_s) if case.time_limit_s else solver
-    result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search),
+    result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search), estimate=False,
                    max_iter=case.max_iter)
     status, message = result.status, result.message
     if isinstance(timed, _Deadline) and timed.expired:
