@@ -123,3 +123,14 @@ def test_accuracy_input_is_checked():
         qdframe.solve("slide-on-line", accuracy=-1.0)
     with pytest.raises(InputError, match="max_nodes"):
         qdframe.solve("slide-on-line", accuracy=1e-3, max_nodes=2)
+
+
+def test_the_papers_method_runs_on_a_nonuniform_mesh():
+    """native and osqp (the same direction QPs) take the same iterates on an uneven mesh of
+    paper-7.1 and reach the paper's accuracy; gauss-newton solves it."""
+    tau = np.sort(np.concatenate([np.linspace(0, 1, 31), [0.013, 0.52, 0.977]]))
+    native, osqp = (qdframe.solve("paper-7.1", mesh=tau, direction=d, continuation="none") for d in ("native", "osqp"))
+    assert native.iterations == osqp.iterations and native.objective == pytest.approx(osqp.objective, rel=1e-6)
+    assert native.objective <= 1e-3 and native.solution_error <= 1e-3
+    newton = qdframe.solve("paper-7.1", mesh=tau)
+    assert newton.solved and np.array_equal(newton.t, tau) and newton.solution_error <= 1e-12
