@@ -221,6 +221,7 @@ def _optional(module: str, method: str) -> Any:
 
 
 def _grids(grids: list[int], nodes: int) -> str:
+    grids = [count for k, count in enumerate(grids) if k == 0 or count != grids[k - 1]]  # re-solves on one size: once
     if grids and grids[-1] != nodes:  # ended on a coarser grid (a failure there)
         return f"  (ended on this grid; {grids[-1]} requested)"
     return f"  (continued from {', '.join(map(str, grids[:-1]))})" if len(grids) > 1 else ""
