@@ -207,9 +207,12 @@ def solve(
             break
     first = functional.initial_point()  # the returned iterate is never worse than the model's start
     if result.status != "failed" and functional.objective(first) < result.objective:
-        message = f"{result.message}; the model's start is better than the iterate reached: returned unchanged"
+        reached = result.message.partition("; ")[0]  # how the descent ended, not its diagnosis of that iterate
         result = descend(functional, solver, search, dataclasses.replace(options, max_iter=0), None, first)
-        result.status, result.message = "stationary", message
+        unmet = result.message.partition("; ")[2]  # the diagnosis of the start, which is returned
+        result.status = "stationary"
+        result.message = (f"{reached}; the model's start is better than the iterate reached: returned unchanged"
+                          + (f"; {unmet}" if unmet else ""))
     result.history = history
     functional, result = _estimate(functional, result, solver, search, options, progress, estimate, accuracy, max_nodes,
                                    requested)
