@@ -205,8 +205,10 @@ def _solve(args: argparse.Namespace) -> int:
     direction = with_options(make_direction(args.direction), dict(args.option or ()))
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
-        grid = (f"from {args.nodes or 21} points to accuracy {args.accuracy:g}" if args.accuracy
-                else f"on {args.nodes or 101} nodes")
+        from .descent import ACCURACY_START_NODES, DEFAULT_NODES
+
+        grid = (f"from {args.nodes or ACCURACY_START_NODES} points to accuracy {args.accuracy:g}" if args.accuracy
+                else f"on {args.nodes or DEFAULT_NODES} nodes")
         print(f"solving {model.name} {grid} with {args.direction}, budget {args.max_iter} iterations …",
               end="", file=sys.stderr, flush=True)
     try:
