@@ -42,7 +42,7 @@ SWITCH_ROUNDS = 6  # at most this many re-solves to settle the switch times on o
 REFINE_MARGIN = 0.85  # a refined mesh aims at this fraction of the accuracy
 MONITOR_FLOOR = 0.05  # the error density never falls below this fraction of its mean
 
-Resolve = Callable[[Functional, SolveResult, int], SolveResult]
+Resolve = Callable[[Functional, SolveResult], SolveResult]  # a descent on a functional from a result
 
 
 @dataclasses.dataclass
@@ -58,8 +58,8 @@ def estimate(functional: Functional, result: SolveResult, resolve: Resolve) -> E
     """The error estimate of a solved `result` on `functional`'s grid (module docstring)."""
     if result.status != "solved":
         return Estimate(None, None, None)
-    finer = _like(functional, functional.grid.bisected())
-    companion = resolve(finer, result, 0)
+    finer = like(functional, functional.grid.bisected())
+    companion = resolve(finer, result)
     if companion.status != "solved":
         return Estimate(None, None, companion)
     grid = functional.grid
@@ -114,16 +114,16 @@ def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def settle_switches(functional: Functional, result: SolveResult, resolve: Resolve) -> tuple[Functional, SolveResult]:
     """Move mesh points onto the switch times and re-solve until the times settle."""
-    times = switch_times(functional, _xi(functional, result))
+    times = switch_times(functional, iterate(functional, result))
     for _ in range(SWITCH_ROUNDS):
         if times.size == 0 or result.status != "solved":
             break
         tau = pin(functional.grid.mesh_times, times)
         if np.array_equal(tau, functional.grid.mesh_times):
             break
-        functional = _like(functional, Grid.from_mesh(tau, functional.grid.scheme))
-        result = resolve(functional, result, 0)
-        moved = switch_times(functional, _xi(functional, result))
+        functional = like(functional, Grid.from_mesh(tau, functional.grid.scheme))
+        result = resolve(functional, result)
+        moved = switch_times(functional, iterate(functional, result))
         settled = moved.size == times.size and np.max(np.abs(moved - times)) <= SWITCH_SETTLED * functional.grid.T
         times = moved
         if settled:
@@ -154,11 +154,12 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     return finer
 
 
-def _like(functional: Functional, grid: Grid) -> Functional:
+def like(functional: Functional, grid: Grid) -> Functional:
     """A functional of the same model and sign treatment on `grid`."""
     return Functional(functional.model, grid, signs=functional.signs, selection_scale=functional.selection_scale)
 
 
-def _xi(functional: Functional, result: SolveResult) -> np.ndarray:
+def iterate(functional: Functional, result: SolveResult) -> np.ndarray:
+    """ξ of a result on `functional`'s grid (x, z, u and the selections λ)."""
     return functional.pack(result.x, result.z, result.u, result.selections)
 

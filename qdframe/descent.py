@@ -284,36 +284,34 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
 
     note, found = "", adaptive.Estimate(None, None, None)
     if accuracy is not None and result.status == "solved":
-        functional, result = adaptive.settle_switches(functional, result, lambda f, r, _: run(f, r, True))
+        functional, result = adaptive.settle_switches(functional, result, lambda f, r: run(f, r, True))
         if result.status == "solved" and make_scheme(scheme).name != functional.grid.scheme.name:
-            functional = Functional(functional.model, Grid.from_mesh(functional.grid.mesh_times, scheme),
-                                    signs=functional.signs, selection_scale=functional.selection_scale)
+            functional = adaptive.like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme))
             result = run(functional, result, True)
         while result.status == "solved":
-            functional, result = adaptive.settle_switches(functional, result, lambda f, r, _: run(f, r, True))
-            found = adaptive.estimate(functional, result, lambda f, r, _: run(f, r, False))
+            functional, result = adaptive.settle_switches(functional, result, lambda f, r: run(f, r, True))
+            found = adaptive.estimate(functional, result, lambda f, r: run(f, r, False))
             if found.value is None or found.value <= accuracy:
                 break
             tau = adaptive.refine(functional.grid, found.local, accuracy, found.value)
-            tau = adaptive.pin(tau, switches.switch_times(functional, adaptive._xi(functional, result)))  # kept on a point
+            tau = adaptive.pin(tau, switches.switch_times(functional, adaptive.iterate(functional, result)))  # kept on a point
             finer = Grid.from_mesh(tau, functional.grid.scheme)
             if finer.nodes > max_nodes:
                 note = f"accuracy {accuracy:.1e} not met: error estimate {found.value:.1e} with {functional.grid.nodes} " \
                        f"nodes; the next mesh ({finer.nodes}) would pass max_nodes = {max_nodes}"
                 break
-            functional = Functional(functional.model, finer, signs=functional.signs,
-                                    selection_scale=functional.selection_scale)
+            functional = adaptive.like(functional, finer)
             result = run(functional, result, True)
         if found.value is not None and found.value <= accuracy:
             note = f"error estimate {found.value:.1e} ≤ accuracy {accuracy:.1e}"
     elif wanted:
-        found = adaptive.estimate(functional, result, lambda f, r, _: run(f, r, False))
+        found = adaptive.estimate(functional, result, lambda f, r: run(f, r, False))
     if found.companion is not None and found.value is None:
         note = f"no error estimate: the solve on the bisected grid ({found.companion.nodes} nodes) ended " \
                f"{found.companion.status}"
     result.history = history
     result.error_estimate = found.value
-    result.switch_times = (switches.switch_times(functional, adaptive._xi(functional, result))
+    result.switch_times = (switches.switch_times(functional, adaptive.iterate(functional, result))
                            if result.status == "solved" else np.zeros(0))
     if accuracy is not None:
         if result.status == "solved" and found.value is not None and found.value > accuracy:
