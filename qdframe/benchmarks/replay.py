@@ -39,9 +39,12 @@ quadrature, found by Newton–Picard sweeps — one vectorized evaluation of P (
 x-Jacobian from the sides' gradients) per sweep at every point, the correction δ
 solving the linearized equation by backward Euler (an affine recursion evaluated as a
 parallel prefix scan: no Python loop over time). s is chosen so that there are at least
-`min_substeps` sub-intervals in all; the replay is then repeated with 2s sub-intervals
-per interval (started from the first), that finer run is the one reported and
-`uncertainty` is the change between the two (plus the last sweep's correction).
+`min_substeps` sub-intervals in all; the replay is then repeated with 2s, 4s, …
+sub-intervals per interval (each run started from the one before) until the replay at
+the solver's nodes changes by ≤ `target` or the next run would exceed `max_points`
+points. The last run is reported and `uncertainty` is its change from the one before
+(plus its last sweep's correction). The projection's switches (kinks of the integrand
+inside a sub-interval) limit the order to 2 there, so that change is what is trusted.
 """
 
 from __future__ import annotations
@@ -71,7 +74,7 @@ class Replay:
     uncertainty: float  # max_k |x_ref(t_k)| change between s and 2s sub-intervals, + last correction
     seconds: float
     recipe: str
-    sweeps: tuple[int, int] = (0, 0)  # Newton–Picard sweeps of the two runs
+    sweeps: tuple[int, ...] = ()  # Newton–Picard sweeps of each run (sub-steps doubling)
     corners: int = 0  # evaluations where the one-pass projection left F (intersections) and was repeated
 
     def __repr__(self) -> str:
@@ -107,7 +110,7 @@ def _nearest(functional: Functional, xi: np.ndarray, jacobian: bool = False):
         step = np.zeros((xi.shape[0], len(coords)))
         if len(sides.sides) == 2:  # an interval: ℓ+ = z − hi, ℓ− = lo − z
             (lp, gp, pp), (lm, gm, pm) = sides.sides
-            empty = (lp > 0) & (lm > 0)  # lo > hi: no point; take the middle (lo + hi)/2
+            empty = lp + lm > 0  # ℓ+ + ℓ− = lo − hi > 0: F_b is empty; take the middle (lo + hi)/2
             wp = np.where(empty, 0.5, (lp > 0).astype(float))
             wm = np.where(empty, 0.5, (lm > 0).astype(float))
             step = np.where(empty[:, None], 0.5 * (lp[:, None] * pp + lm[:, None] * pm),
@@ -154,7 +157,8 @@ def _corner_repair(functional: Functional, xi: np.ndarray, v: np.ndarray, coords
 
 # ------------------------------------------------------------------ the replay
 def replay(model: InclusionModel | str, t, x, z, u=None, *, min_substeps: int = 2000, tol: float = 1e-12,
-           max_sweeps: int = 40, psi_samples: int = 32) -> Replay:
+           max_sweeps: int = 40, psi_samples: int = 32, target: float = 1e-9,
+           max_points: int = 400_001) -> Replay:
     """The replay of a solver's trajectory (t (N,), x and z (N, n), u (N, m) if the model has
     controls): x_ref at the solver's times, its error against x, its end miss and its own
     uncertainty. See the module's docstring."""
@@ -183,23 +187,30 @@ def replay(model: InclusionModel | str, t, x, z, u=None, *, min_substeps: int = 
     x0 = np.where(np.isfinite(model.x0), model.x0, x[0])
 
     s = max(1, int(np.ceil(min_substeps / (N - 1))))
-    first = _Run(model, t, z, u, s, psi_samples)
-    X1, sweeps1, last1, corners1 = first.solve(x0, first.start_from(x), tol, max_sweeps)
-    second = _Run(model, t, z, u, 2 * s, psi_samples)
-    X2, sweeps2, last2, corners2 = second.solve(x0, second.refine(X1), tol, max_sweeps)
-    coarse, fine = X1[:: 2 * s], X2[:: 4 * s]
-    uncertainty = float(np.max(np.abs(fine - coarse))) + last2
+    run = _Run(model, t, z, u, s, psi_samples)
+    X, sweeps, last, corners = run.solve(x0, run.start_from(x), tol, max_sweeps)
+    history = [(s, sweeps)]
+    while True:  # double the sub-steps until the replay at the solver's nodes moves by ≤ target
+        finer = _Run(model, t, z, u, 2 * s, psi_samples)
+        X2, sweeps2, last2, corners2 = finer.solve(x0, finer.refine(X), tol, max_sweeps)
+        history.append((2 * s, sweeps2))
+        corners = max(corners, corners2)
+        change = float(np.max(np.abs(X2[:: 4 * s] - X[:: 2 * s])))
+        X, s, last = X2, 2 * s, last2
+        if change <= target or 4 * s * (N - 1) + 1 > max_points:
+            break
+    fine = X[:: 2 * s]
+    uncertainty = change + last
     error = float(np.max(np.abs(x - fine)))
     judge = Functional(model, Grid(model.T, 2), signs="band")
     end_miss = judge.boundary_error(np.concatenate([fine[[0, -1]], np.zeros((2, n))], axis=1))
     seconds = time.perf_counter() - start
-    recipe = (f"replay: Lobatto IIIA (cumulative Simpson) collocation on {2 * s} sub-steps per solver interval "
-              f"({2 * s * (N - 1)} in all, {sweeps2} Newton–Picard sweeps), checked against {s} "
-              f"({s * (N - 1)} in all, {sweeps1} sweeps); P by distance_sides (band signs, ψ* from "
-              f"{psi_samples} samples)" + (f"; {max(corners1, corners2)} intersection-corner points re-projected"
-                                            if max(corners1, corners2) else ""))
-    return Replay(fine, error, float(end_miss), uncertainty, seconds, recipe, (sweeps1, sweeps2),
-                  max(corners1, corners2))
+    steps = ", ".join(f"{k} ({k * (N - 1)} in all, {w} sweeps)" for k, w in history)
+    recipe = (f"replay: Lobatto IIIA (cumulative Simpson) collocation, Newton–Picard sweeps, on {steps} sub-steps "
+              f"per solver interval, the last reported, uncertainty = its change from the one before; "
+              f"P by distance_sides (band signs, ψ* from {psi_samples} samples)"
+              + (f"; {corners} intersection-corner points re-projected" if corners else ""))
+    return Replay(fine, error, float(end_miss), uncertainty, seconds, recipe, tuple(w for _, w in history), corners)
 
 
 def _array(name: str, value, shape: tuple[int, int]) -> np.ndarray:
