@@ -52,6 +52,7 @@ class PeerRun:
     x: np.ndarray | None = None
     z: np.ndarray | None = None
     history: list[dict] = field(default_factory=list)  # per homotopy step: iteration, I, objective, time_s
+    t: np.ndarray | None = None  # the peer's own time grid of x and z (None: qdframe's grid, as nosnoc's)
 
 
 def nosnoc_available() -> str | None:
