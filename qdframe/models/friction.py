@@ -20,6 +20,7 @@ block-breakaway           p = v = 0 for t ≤ 1; v = (t−1)²/2, p = (t−1)³/
 slide-on-line             x1 = e^{−t}, x2 = −e^{−t} (on s = x1 + x2 = 0)          ()
 slide-after-reaching      x1 = 1 − t², x2 = −2t; then x1 = −x2 = 2r·e^{−(t−r)}   (r,) r = √2 − 1
 two-surface-sliding       piecewise linear, x2 ≡ 0 after 0.4, x1 ≡ 0 after 1.04  (0.4, 1.04)
+stick-slip-oscillator     arcs p = ±μ + r_k·cos(t − kπ); p ≡ 0 after 25π        (π, 2π, …, 25π)
 ========================  ====================================================  ==========================
 """
 
@@ -321,7 +322,83 @@ class TwoSurfaceSliding(_ExactModel):
         return -np.stack([lambda1, lambda2], axis=1)
 
 
+# ------------------------------------------------------------- stick-slip-oscillator
+OSC_FRICTION, OSC_P0, OSC_T = 0.1, 5.0, 100.0  # μ, p(0), T
+
+
+def _oscillator_stop_count(p0: float = OSC_P0, mu: float = OSC_FRICTION) -> int:
+    """K, the first k with |p_k| = |p0| − 2μk ≤ μ: the turning point where the mass stays stuck."""
+    return max(int(np.ceil((abs(p0) - mu) / (2 * mu) - 1e-9)), 0)
+
+
+OSC_STOP_COUNT = _oscillator_stop_count()  # 25: |p_25| = 0
+OSC_STOP_TIME = OSC_STOP_COUNT * np.pi  # 25π ≈ 78.54
+
+
+def _oscillator_turning_points(k: np.ndarray) -> np.ndarray:
+    """p_k = (−1)^k·(p0 − 2μk): each half cycle shortens the swing by 2μ."""
+    return np.where(k % 2 == 0, 1.0, -1.0) * (OSC_P0 - 2 * OSC_FRICTION * k)
+
+
+def stick_slip_oscillator_motion(t: np.ndarray) -> np.ndarray:
+    """(p, v) of p'' ∈ −p − μ·Sgn(p') from (p0, 0), p0 > μ.
+
+    Arc k (kπ ≤ t ≤ (k + 1)π, k < K) starts at rest at p_k and moves against p_k's sign,
+    friction pushing back, so it is harmonic about c_k = μ·sign(p_k):
+        p = c_k + r_k·cos(t − kπ),   v = −r_k·sin(t − kπ),   r_k = p_k − c_k = (−1)^k(p0 − μ − 2μk),
+    ending at rest at p_{k+1} = c_k − r_k = −p_k + 2μ·sign(p_k). From t = Kπ the mass is stuck at p_K.
+    """
+    t = _times(t)
+    k = np.clip(np.floor(t / np.pi), 0, OSC_STOP_COUNT).astype(int)
+    start = _oscillator_turning_points(k)
+    radius = start - OSC_FRICTION * np.sign(start)
+    phase = t - k * np.pi
+    moving = k < OSC_STOP_COUNT
+    p = np.where(moving, start - radius + radius * np.cos(phase), start)
+    v = np.where(moving, -radius * np.sin(phase), 0.0)
+    return np.stack([p, v], axis=1)
+
+
+class StickSlipOscillator(_ExactModel):
+    """A mass on a spring with Coulomb friction: decaying stick-slip swings, then stuck for good.
+
+        p' = v,   v' ∈ −p − μ·Sgn(v),   μ = 0.1,   x(0) = (5, 0),   T = 100.
+
+    The start is a release: at rest with |p| = 5 > μ the spring beats friction (Sgn(0)
+    would need λ = −p/μ = −50). Each half cycle is a harmonic arc of length π about ±μ
+    (see :func:`stick_slip_oscillator_motion`), the turning points p_k = (−1)^k(5 − 0.2k)
+    shrinking by 2μ. At a turning point the mass stays stuck iff |p_k| ≤ μ: p_24 = 0.2
+    is a reversal, p_25 = 0 at t = 25π ≈ 78.54 a stop, stuck until T = 100 (λ = p_25/μ = 0).
+    Switch times: the 24 reversals kπ and the stop 25π. Coded switch s = −v:
+    λ = (−1)^k on arc k, then p_25/μ.
+    """
+
+    name = "stick-slip-oscillator"
+    description = "Spring-mass v' ∈ −p − 0.1·Sgn(v) from p = 5: 24 reversals at kπ, stuck at p = 0 from 25π to T = 100"
+    state_names = ("position", "velocity")
+    default_T = OSC_T  # a long horizon: 25 arcs, then a 21.5 stick; no kπ on a node of N = 101, 1001, 10001
+    default_x0 = (OSC_P0, 0.0)
+    switch_times = tuple(float(k * np.pi) for k in range(1, OSC_STOP_COUNT + 1))
+
+    def blocks(self) -> tuple[SetBlock, ...]:
+        return (
+            SetBlock.equation(0, _coordinate(1, 2), "p' = v"),
+            SetBlock.equation(1, _affine({0: -1.0}, 2), "v' ∈ −p − μ·Sgn(v)",
+                              (SignTerm(OSC_FRICTION, _affine({1: -1.0}, 2), name="μ·Sgn(−v)"),)),
+        )
+
+    def motion(self, t: np.ndarray) -> np.ndarray:
+        return stick_slip_oscillator_motion(t)
+
+    def multipliers(self, t: np.ndarray) -> np.ndarray:
+        k = np.clip(np.floor(_times(t) / np.pi), 0, OSC_STOP_COUNT).astype(int)
+        arcs = np.where(k % 2 == 0, 1.0, -1.0)
+        stuck = _oscillator_turning_points(np.array(OSC_STOP_COUNT)) / OSC_FRICTION
+        return np.where(k < OSC_STOP_COUNT, arcs, stuck)[:, None]
+
+
 FRICTION_MODELS: dict[str, type[InclusionModel]] = {
     cls.name: cls
-    for cls in (BlockStopStick, BlockStopStickBVP, BlockBreakaway, SlideOnLine, SlideAfterReaching, TwoSurfaceSliding)
+    for cls in (BlockStopStick, BlockStopStickBVP, BlockBreakaway, SlideOnLine, SlideAfterReaching, TwoSurfaceSliding,
+                StickSlipOscillator)
 }
