@@ -13,37 +13,48 @@ import shlex
 import sys
 from collections.abc import Sequence
 
-from ..argtypes import integer, names, node_counts, positive_float
+from ..argtypes import integer, names, node_counts, positive_float, vector
 from ..errors import InputError
-from .report import summary_table, write_report
+from .references import cross_check
+from .report import ratio_table, summary_table, time_table, write_report
 from .sweep import SUITES, plan, run_sweep
 
-
-
-
-
-
-
-
+def tolerances(text: str) -> list[float]:
+    """Comma-separated positive numbers like 1e-3,1e-6, or `none` for an empty ladder."""
+    if text.strip() == "none":
+        return []
+    values = vector(text)
+    if not all(v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers like 1e-3,1e-6 (or none), got {text!r}")
+    return values
 
 
 def add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
     """Add `run` to the subparsers of `qdframe bench`; returns its parser."""
     run = bench_subparsers.add_parser(
         "run",
-        help="sweep models × directions × line searches × grids (and peers); speed against error",
-        description="Run a sweep and write results.csv, results.json (with histories), figures and report.md "
-        "into --out, row by row (--resume continues an interrupted sweep).",
+        help="work-precision sweep: each solver's accuracy knob, every run judged against a reference solution",
+        description="Run a sweep and write results.csv, results.json (with histories), work-precision diagrams "
+        "and report.md into --out, row by row (--resume continues an interrupted sweep). Every run's error is "
+        "measured against the model's reference solution on the run's own time grid.",
     )
     run.add_argument("--suite", choices=sorted(SUITES), default="quick",
-                     help="quick: paper-7.1..7.3 and the two peer problems × 3 directions × N = 11, 51 "
-                     "(≤ 100 iterations); full: every model, direction and line search × N = 11, 101, 1001")
+                     help="quick (CI, under 2 minutes): 5 models, gauss-newton to N = 161 and accuracy= 1e-3, 1e-6, "
+                     "native to N = 41; standard: the paper's, plugin, friction, peer and T = 100 models, "
+                     "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
+                     "and line search")
     run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")
     run.add_argument("--directions", type=names, metavar="NAME,..", help="only these directions (default: the suite's)")
     run.add_argument("--line-searches", type=names, metavar="NAME,..",
                      help="every direction with each of these (default: each direction's own; full: all)")
-    run.add_argument("--nodes", type=node_counts, metavar="N,..", help="grids (default: the suite's)")
-    run.add_argument("--peers", action="store_true", help="also run nosnoc on the problems it can state")
+    run.add_argument("--nodes", type=node_counts, metavar="N,..", help="every solver's grids (default: the suite's)")
+    run.add_argument("--accuracy", type=tolerances, metavar="E,..",
+                     help="gauss-newton's accuracy= targets (default: the suite's; 'none' for none)")
+    run.add_argument("--bvp-tols", type=tolerances, metavar="E,..",
+                     help="solve_bvp's tol ladder (default: the suite's; 'none' for none)")
+    run.add_argument("--peers", action="store_true",
+                     help="also run the peers on the models they can state: nosnoc (Filippov problems with "
+                     "an input) and scipy's solve_bvp (the friction and sliding models)")
     run.add_argument("--executor", choices=("local", "dask"), default="local",
                      help="local: one run after another here; dask: on dask.distributed (default local)")
     run.add_argument("--scheduler", metavar="ADDRESS",
@@ -70,17 +81,21 @@ def main_run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int
         peers=args.peers,
         max_iter=args.max_iter,
         time_limit_s=args.time_limit,
+        accuracy=args.accuracy,
+        bvp_tols=args.bvp_tols,
     )
     say = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
     command = "qdframe bench run " + " ".join(shlex.quote(a) for a in (argv if argv is not None else _echo(args)))
     if say:
         models = sweep.settings["models"]
         say(f"{len(sweep.cases)} runs: {len(models)} models × directions {', '.join(sweep.settings['directions'])} "
-            f"× N = {', '.join(map(str, sweep.settings['nodes']))}" + (" + peers" if args.peers else ""))
+            f"× N = {', '.join(map(str, sweep.settings['nodes']))}"
+            + (f" and accuracy= {', '.join(f'{e:g}' for e in sweep.settings['accuracy'])}" if sweep.settings['accuracy'] else "")
+            + (" + peers" if args.peers else ""))
         for name, why in sweep.skipped.items():
             say(f"skipped direction {name}: {why}")
         if args.peers and not any(case.peer for case in sweep.cases):
-            say("--peers: no model of the sweep is one the peers can state (coulomb-rest-to-rest, sliding-mode-terminal)")
+            say("--peers: no model of the sweep is one the peers can state")
     try:
         outcome = run_sweep(sweep, args.out, resume=args.resume, executor=args.executor, scheduler=args.scheduler,
                             workers=args.workers, progress=say, command=command)
@@ -88,12 +103,15 @@ def main_run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int
         print(f"qdframe: interrupted; the finished runs are in {args.out}: add --resume to continue",
               file=sys.stderr)
         return 130
-    paths = write_report(outcome.rows, outcome.meta, args.out, seconds=outcome.seconds)
+    references = {name: cross_check(name) for name in sorted({r["model"] for r in outcome.rows})}
+    paths = write_report(outcome.rows, outcome.meta, args.out, seconds=outcome.seconds, references=references)
     if not args.quiet:
-        tol = sweep.settings["residual_tol"]
-        print(summary_table(outcome.rows, tol, sweep.settings["time_limit_s"]))
+        print(time_table(outcome.rows))
+        if any(case.peer for case in sweep.cases):
+            print("\n" + ratio_table(outcome.rows))
+        print("\n" + summary_table(outcome.rows, sweep.settings["time_limit_s"]))
         print(f"\n{outcome.ran} runs in {outcome.seconds:.1f} s ({outcome.resumed} resumed); "
-              f"{paths['report']}, {paths['speed_vs_error']}, results.csv, results.json in {args.out}")
+              f"{paths['report']}, {paths['work_precision']}, results.csv, results.json in {args.out}")
     return 0
 
 
@@ -106,6 +124,9 @@ def _echo(args: argparse.Namespace) -> list[str]:
             words += [flag, ",".join(value)]
     if args.nodes:
         words += ["--nodes", ",".join(map(str, args.nodes))]
+    for flag, value in (("--accuracy", args.accuracy), ("--bvp-tols", args.bvp_tols)):
+        if value is not None:
+            words += [flag, ",".join(f"{e:g}" for e in value) or "none"]
     words += ["--peers"] if args.peers else []
     if args.executor != "local":
         words += ["--executor", args.executor]

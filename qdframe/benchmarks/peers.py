@@ -25,6 +25,7 @@ import io
 import math
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
 
@@ -37,6 +38,7 @@ from .models import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
 
 NOSNOC_STAGES = 10
 PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name)}
+PEERS = ("nosnoc", "solve_bvp")  # the peers' names, as the `direction` of their rows
 INSTALL_HINT = "pip install 'qdframe[peers]' (or pip install nosnoc)"
 
 
@@ -52,7 +54,8 @@ class PeerRun:
     x: np.ndarray | None = None
     z: np.ndarray | None = None
     history: list[dict] = field(default_factory=list)  # per homotopy step: iteration, I, objective, time_s
-    t: np.ndarray | None = None  # the peer's own time grid of x and z (None: qdframe's grid, as nosnoc's)
+    t: np.ndarray | None = None  # the peer's own time grid (None: N uniform nodes)
+    inputs: Callable[[float], np.ndarray] | None = None  # the peer's own input u(t), where it has one
 
 
 def nosnoc_available() -> str | None:
@@ -115,7 +118,17 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
     )
     if "Warning" in chatter.getvalue():
         message += "; " + chatter.getvalue().strip().splitlines()[-1]
-    return PeerRun("solved" if success else "failed", message, ipopt_iterations, wall, setup, x, z, history)
+    controls = np.asarray(results["u_list"], dtype=float).reshape(NOSNOC_STAGES, -1)
+    return PeerRun("solved" if success else "failed", message, ipopt_iterations, wall, setup, x, z, history,
+                   inputs=_stagewise(controls, model.T))
+
+
+def _stagewise(controls: np.ndarray, T: float) -> Callable[[float], np.ndarray]:
+    """nosnoc's control: constant on each of its equal control stages."""
+    def drive(s: float) -> np.ndarray:
+        return controls[min(int(s / T * controls.shape[0]), controls.shape[0] - 1)]
+
+    return drive
 
 
 def _version(distribution: str) -> str:
@@ -203,7 +216,9 @@ def _problem(model: InclusionModel, ca, nosnoc):
         u1, u2 = ca.SX.sym("u1"), ca.SX.sym("u2")
         x, u = ca.vertcat(x1, x2, v1, v2), ca.vertcat(u1, u2)
         first = ca.horzcat(ca.vertcat(-1 + v1, 0, u1, u2), ca.vertcat(1 + v1, 0, u1, u2))
-        second = ca.horzcat(ca.vertcat(0, -1 + v2, u1, u2), ca.vertcat(0, 1 + v2, u1, u2))
+        # FESD adds the subsystems' fields (x' = Σ_i F_i θ_i, Σ θ_i = 1 per subsystem), so the input
+        # enters one subsystem only: in both it would drive v' = 2u (a box of ±20, not qdframe's ±10)
+        second = ca.horzcat(ca.vertcat(0, -1 + v2, 0, 0), ca.vertcat(0, 1 + v2, 0, 0))
         switches = [x1 + SLIDING_A * x2**2, x2 + SLIDING_B * x1**3]
         nos_model = nosnoc.NosnocModel(x=x, F=[first, second], c=switches, S=S + S, x0=np.array(model.x0), u=u)
         bound = model.input_bound * np.ones(2)

@@ -1,18 +1,25 @@
-"""The summary of a sweep: qpbenchmark-style metrics, figures and report.md.
+"""The summary of a sweep: work-precision diagrams, times to an error, qpbenchmark-style
+metrics and report.md.
 
-Metrics follow qpbenchmark (github.com/qpsolvers/qpbenchmark, ``results.py``/``shgeom.py``),
-with a "solver" = a direction solver and its line search (or a peer) and a "problem" = a
-model on a grid:
+Every measure here is judged by a row's ``error``: the max over the run's own time grid of
+|x − x_ref| against the model's reference (:mod:`.references`), the same yardstick for
+qdframe and the peers. A "solver" is one line of a work-precision diagram: a direction and
+line search on a ladder of grids, gauss-newton with ``accuracy=`` targets, nosnoc on a ladder
+of finite elements, solve_bvp on a ladder of ``tol``. Metrics follow qpbenchmark
+(github.com/qpsolvers/qpbenchmark, ``results.py``/``shgeom.py``), with a "problem" = a model
+at one knob setting:
 
-* success rate: the percentage of a solver's runs that (1) report success (`solved`) and
-  (2) pass the residual check, ``residual_error`` ≤ the residual tolerance;
-* correct rate: the percentage of runs whose own success report agrees with that check,
-  i.e. found == (found and valid) — a run that does not claim success is counted correct,
-  a `solved` that the residuals do not confirm is not;
-* runtime: the shifted geometric mean shm(t) = exp(mean(log(t_i + sh))) − sh with sh = 10,
-  over each solver's wall times in seconds, a run that did not report success counted at
-  the time limit; then, as qpbenchmark reports it, divided by the smallest shm of all
-  solvers (1.0 is the fastest, Y means Y times slower). The shm in seconds is shown too.
+* success rate: the percentage of a solver's runs that report success (`solved`) and whose
+  reference error is ≤ the claim tolerance (5e-3, an ``accuracy=`` run's own target);
+* correct rate: the percentage of runs whose success report the reference error does not
+  contradict — a run that does not claim success is correct, a `solved` with a larger error
+  is not (a "false success", listed in report.md);
+* runtime: the shifted geometric mean shm(t) = exp(mean(log(t_i + sh))) − sh with sh = 10
+  over the wall times in seconds, a run without a confirmed success counted at the time
+  limit, divided by the smallest shm of all solvers (1.0 is the fastest);
+* time to an error ε: the wall time of the fastest run of a solver whose error is ≤ ε
+  (every run counts: the error is the judge, not the solver's report), and its ratio to the
+  fastest run of any other tool on the same model.
 """
 
 from __future__ import annotations
@@ -25,14 +32,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .peers import PEER_MODELS
+from .peers import PEERS
 
 SHIFT = 10.0
+TARGETS = (1e-3, 1e-6)  # the errors whose time to reach report.md gives
 FIGURES = {
-    "speed_vs_error": "speed_vs_error.png",
-    "error_vs_nodes": "error_vs_nodes.png",
+    "work_precision": "work_precision.png",
     "history": "objective_history.png",
 }
+FAILED = {"failed", "time_limit"}  # drawn with a cross: the run did not end normally
 
 
 def shifted_geometric_mean(values: Sequence[float], shift: float = SHIFT) -> float:
@@ -48,16 +56,15 @@ def shifted_geometric_mean(values: Sequence[float], shift: float = SHIFT) -> flo
 
 
 def solver_label(row: dict) -> str:
-    return f"{row['direction']} / {row['line_search']}"
+    return row.get("solver") or f"{row['direction']} / {row['line_search']}"
 
 
-def valid(row: dict, tol: float) -> bool:
-    """The residual check: residual_error is known and ≤ tol."""
-    error = row.get("residual_error")
-    return error is not None and error <= tol
+def tool(row: dict) -> str:
+    """qdframe, or the peer's name: times to an error are compared between tools."""
+    return row["direction"] if row["direction"] in PEERS else "qdframe"
 
 
-def summarize(rows: Sequence[dict], residual_tol: float, time_limit: float | None = None) -> list[dict]:
+def summarize(rows: Sequence[dict], time_limit: float | None = None) -> list[dict]:
     """Per solver: runs, success rate, correct rate, runtime shm (s and × best), median error."""
     limit = _time_limit(rows, time_limit)
     groups: dict[str, list[dict]] = defaultdict(list)
@@ -65,21 +72,20 @@ def summarize(rows: Sequence[dict], residual_tol: float, time_limit: float | Non
         groups[solver_label(row)].append(row)
     table = []
     for label, runs in groups.items():
-        found = [bool(r.get("found")) for r in runs]
-        ok = [valid(r, residual_tol) for r in runs]
-        times = [
-            float(r["wall_time_s"]) if f and r.get("wall_time_s") is not None else limit
-            for r, f in zip(runs, found)
-        ]
+        claims = [r.get("claim") for r in runs]
+        confirmed = [c == "confirmed" for c in claims]
+        times = [float(r["wall_time_s"]) if ok and r.get("wall_time_s") is not None else limit
+                 for r, ok in zip(runs, confirmed)]
         errors = [r["error"] for r in runs if r.get("error") is not None]
         walls = [r["wall_time_s"] for r in runs if r.get("wall_time_s") is not None]
         table.append({
             "solver": label,
             "runs": len(runs),
-            "claimed": sum(found),
-            "confirmed": sum(f and v for f, v in zip(found, ok)),
-            "success_rate": 100.0 * sum(f and v for f, v in zip(found, ok)) / len(runs),
-            "correct_rate": 100.0 * sum(f == (f and v) for f, v in zip(found, ok)) / len(runs),
+            "claimed": sum(bool(r.get("found")) for r in runs),
+            "confirmed": sum(confirmed),
+            "false": sum(c == "false" for c in claims),
+            "success_rate": 100.0 * sum(confirmed) / len(runs),
+            "correct_rate": 100.0 * sum(c != "false" for c in claims) / len(runs),
             "runtime_shm_s": shifted_geometric_mean(times),
             "median_error": float(np.median(errors)) if errors else None,
             "median_time_s": float(np.median(walls)) if walls else None,
@@ -98,6 +104,49 @@ def _time_limit(rows: Sequence[dict], time_limit: float | None) -> float:
         return float(max(limits))
     times = [r["wall_time_s"] for r in rows if r.get("wall_time_s") is not None]
     return float(max(times, default=1.0))
+
+
+def time_to(rows: Sequence[dict], target: float) -> dict[tuple[str, str], dict]:
+    """{(model, solver): the fastest row whose error is ≤ target}."""
+    best: dict[tuple[str, str], dict] = {}
+    for row in rows:
+        error, wall = row.get("error"), row.get("wall_time_s")
+        if error is None or wall is None or error > target:
+            continue
+        key = (row["model"], solver_label(row))
+        if key not in best or wall < best[key]["wall_time_s"]:
+            best[key] = row
+    return best
+
+
+def ratios(rows: Sequence[dict], target: float) -> list[dict]:
+    """Per model and tool pair: the fastest qdframe run to `target` against the fastest run
+    of each peer, {model, peer, qdframe_s, qdframe_solver, peer_s, peer_solver, ratio =
+    peer_s / qdframe_s} (None where one side never reached the target)."""
+    reached = time_to(rows, target)
+    out = []
+    for model in sorted({r["model"] for r in rows}):
+        by_tool: dict[str, list[dict]] = defaultdict(list)
+        for r in rows:
+            if r["model"] == model:
+                by_tool[tool(r)].append(r)
+        for peer in sorted(t for t in by_tool if t != "qdframe"):
+            ours = _fastest([reached[(model, s)] for s in {solver_label(r) for r in by_tool["qdframe"]}
+                             if (model, s) in reached])
+            theirs = _fastest([reached[(model, s)] for s in {solver_label(r) for r in by_tool[peer]}
+                               if (model, s) in reached])
+            out.append({
+                "model": model, "peer": peer,
+                "qdframe_s": ours["wall_time_s"] if ours else None, "qdframe_solver": solver_label(ours) if ours else None,
+                "qdframe_knob": ours["knob"] if ours else None,
+                "peer_s": theirs["wall_time_s"] if theirs else None, "peer_knob": theirs["knob"] if theirs else None,
+                "ratio": theirs["wall_time_s"] / ours["wall_time_s"] if ours and theirs and ours["wall_time_s"] > 0 else None,
+            })
+    return out
+
+
+def _fastest(rows: Sequence[dict]) -> dict | None:
+    return min(rows, key=lambda r: r["wall_time_s"]) if rows else None
 
 
 # ------------------------------------------------------------------------- figures
@@ -121,41 +170,47 @@ def _style(i: int, colors: Sequence[str]) -> dict:
             "ms": max(3.0, 6.0 - i), "mfc": "none" if i % 2 else None}
 
 
-def plot_speed_vs_error(rows: Sequence[dict], path: str | Path, residual_tol: float | None = None) -> None:
-    """Wall time against error, log-log: one colour per solver (every other one hollow), one
-    marker per model, peers outlined in black; a dashed line at the residual tolerance."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8.5, 5.5), constrained_layout=True)
-    solvers = sorted({solver_label(r) for r in rows})
-    models = sorted({r["model"] for r in rows})
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    markers = "osD^v<>pPX*h"
-    for i, solver in enumerate(solvers):
-        for j, model in enumerate(models):
-            points = [(max(r["error"], FLOOR), r["wall_time_s"]) for r in rows
-                      if solver_label(r) == solver and r["model"] == model
-                      and r.get("error") is not None and r.get("wall_time_s")]
-            if points:
-                e, t = zip(*points)
-                color = colors[i % len(colors)]
-                hollow = i % 2 == 1  # so that solvers with the same iterates stay visible
-                ax.scatter(e, t, marker=markers[j % len(markers)], s=40 if hollow else 30,
-                           facecolors="none" if hollow else color,
-                           edgecolors="black" if solver.split(" / ")[0] in PEER_MODELS else color,
-                           linewidths=1.2 if hollow else 0.6)
-    if residual_tol:
-        ax.axvline(residual_tol, color="gray", ls="--", lw=0.8)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set(xlabel="error (solution error where known, else max residual)", ylabel="wall time (s)",
-           title="speed against error (lower left is better)")
-    ax.grid(True, which="major", alpha=0.3)
-    handles = [plt.Line2D([], [], color=colors[i % len(colors)], marker="o", ls="", label=s,
-                          mfc="none" if i % 2 else colors[i % len(colors)]) for i, s in enumerate(solvers)]
-    handles += [plt.Line2D([], [], color="gray", marker=markers[j % len(markers)], ls="", label=m) for j, m in enumerate(models)]
-    if residual_tol:
-        handles.append(plt.Line2D([], [], color="gray", ls="--", lw=0.8, label=f"residual tolerance {residual_tol:g}"))
-    ax.legend(handles=handles, fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+def _knob_order(row: dict) -> float:
+    """Coarse to fine along a solver's line: N ascending, targets and tolerances descending."""
+    knob = str(row.get("knob") or f"N={row['nodes']}")
+    name, _, value = knob.partition("=")
+    return float(value) if name == "N" else -math.log10(float(value))
+
+
+def plot_work_precision(rows: Sequence[dict], path: str | Path, models: Sequence[str] | None = None,
+                        targets: Sequence[float] = TARGETS) -> None:
+    """Wall time against reference error, log-log, one panel per model, one line per solver
+    (coarse to fine), a cross where a run failed or hit the time limit, a hollow marker where
+    it did not report success; dotted verticals at the `targets`."""
+    rows = [r for r in rows if models is None or r["model"] in models]
+    plt, fig, axes, models, solvers, colors = _panels(rows)
+    for ax, model in zip(axes.flat, models):
+        for i, solver in enumerate(solvers):
+            line = sorted((r for r in rows if r["model"] == model and solver_label(r) == solver
+                           and r.get("error") is not None and r.get("wall_time_s")), key=_knob_order)
+            if not line:
+                continue
+            style = _style(i, colors)
+            errors = [max(r["error"], FLOOR) for r in line]
+            times = [r["wall_time_s"] for r in line]
+            ax.plot(errors, times, color=style["color"], ls=style["ls"], lw=1.2)
+            for r, e, t in zip(line, errors, times):
+                marker = "x" if r["status"] in FAILED else style["marker"]
+                solved = r["status"] == "solved"
+                ax.plot([e], [t], marker=marker, color=style["color"], ms=style["ms"] + 1,
+                        mfc=style["color"] if solved and marker != "x" else "none", ls="")
+        for target in targets:
+            ax.axvline(target, color="gray", ls=":", lw=0.8)
+        ax.set(xscale="log", yscale="log", xlabel="error max|x − x_ref| on the run's grid", ylabel="wall time (s)",
+               title=model)
+        ax.grid(True, which="major", alpha=0.3)
+    for ax in list(axes.flat)[len(models):]:
+        ax.set_visible(False)
+    handles = [plt.Line2D([], [], label=s, color=_style(i, colors)["color"], ls=_style(i, colors)["ls"],
+                          marker=_style(i, colors)["marker"]) for i, s in enumerate(solvers)]
+    handles += [plt.Line2D([], [], color="gray", marker="o", mfc="none", ls="", label="not solved"),
+                plt.Line2D([], [], color="gray", marker="x", ls="", label="failed / time limit")]
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=min(4, len(handles)))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -172,46 +227,23 @@ def _panels(rows: Sequence[dict]):
     return plt, fig, axes, models, solvers, colors
 
 
-def plot_error_vs_nodes(rows: Sequence[dict], path: str | Path) -> None:
-    """Error against N (log-log), one panel per model, one line per solver."""
-    plt, fig, axes, models, solvers, colors = _panels(rows)
-    for ax, model in zip(axes.flat, models):
-        for i, solver in enumerate(solvers):
-            points = sorted((r["nodes"], max(r["error"], FLOOR)) for r in rows
-                            if r["model"] == model and solver_label(r) == solver and r.get("error") is not None)
-            if points:
-                n, e = zip(*points)
-                ax.plot(n, e, label=solver, **_style(i, colors))
-        kinds = {r.get("error_kind") for r in rows if r["model"] == model}
-        ax.set(xscale="log", yscale="log", xlabel="nodes N", title=model,
-               ylabel="solution error" if kinds == {"solution"} else "error (max residual)")
-        grids = sorted({r["nodes"] for r in rows if r["model"] == model})
-        ax.set_xticks(grids, [str(n) for n in grids])
-        ax.minorticks_off()
-        ax.grid(True, alpha=0.3)
-    for ax in list(axes.flat)[len(models):]:
-        ax.set_visible(False)
-    handles = [plt.Line2D([], [], label=s, **_style(i, colors)) for i, s in enumerate(solvers)]
-    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=min(4, len(solvers)))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def plot_histories(rows: Sequence[dict], path: str | Path) -> None:
-    """I against iteration (log scale) on each model's finest grid, one line per solver."""
+    """I against iteration (log scale), one panel per model, one line per solver: its run
+    with the most points."""
     plt, fig, axes, models, solvers, colors = _panels(rows)
     for ax, model in zip(axes.flat, models):
-        finest = max(r["nodes"] for r in rows if r["model"] == model)
         for i, solver in enumerate(solvers):
-            for row in rows:
-                if row["model"] == model and row["nodes"] == finest and solver_label(row) == solver:
-                    history = row.get("history") or {}
-                    its, values = history.get("iteration") or [], history.get("I") or []
-                    pairs = [(k, max(v, 1e-300)) for k, v in zip(its, values) if v is not None]
-                    if pairs:
-                        k, v = zip(*pairs)
-                        ax.semilogy(k, v, label=solver, **{**_style(i, colors), "marker": None})
-        ax.set(xlabel="iteration (nosnoc: homotopy step)", ylabel="I", title=f"{model}, N = {finest}")
+            runs = [r for r in rows if r["model"] == model and solver_label(r) == solver]
+            if not runs:
+                continue
+            row = max(runs, key=lambda r: r.get("nodes") or 0)
+            history = row.get("history") or {}
+            its, values = history.get("iteration") or [], history.get("I") or []
+            pairs = [(k, max(v, 1e-300)) for k, v in zip(its, values) if v is not None]
+            if pairs:
+                k, v = zip(*pairs)
+                ax.semilogy(k, v, label=solver, **{**_style(i, colors), "marker": None})
+        ax.set(xlabel="iteration (nosnoc: homotopy step)", ylabel="I", title=model)
         ax.grid(True, alpha=0.3)
     for ax in list(axes.flat)[len(models):]:
         ax.set_visible(False)
@@ -230,130 +262,173 @@ def _number(value, digits: int = 1, style: str = "e") -> str:
     return f"{value:.{digits}{style}}"
 
 
-def summary_table(rows: Sequence[dict], residual_tol: float, time_limit: float | None = None) -> str:
+def summary_table(rows: Sequence[dict], time_limit: float | None = None) -> str:
     """The per-solver table as Markdown."""
     lines = [
-        "| solver (direction / line search) | runs | success rate (%) | correct rate (%) | runtime (shm, × best) "
-        "| runtime shm (s) | median wall time (s) | `solved` claims / confirmed | median error |",
+        "| solver | runs | success rate (%) | correct rate (%) | runtime (shm, × best) | runtime shm (s) "
+        "| median wall time (s) | `solved` claims / confirmed / false | median error |",
         "|:---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    for t in summarize(rows, residual_tol, time_limit):
+    for t in summarize(rows, time_limit):
         lines.append(
             f"| {t['solver']} | {t['runs']} | {t['success_rate']:.0f} | {t['correct_rate']:.0f} | "
             f"{_number(t['runtime_shm'], 2, 'f')} | {_number(t['runtime_shm_s'], 3, 'f')} | "
-            f"{_number(t['median_time_s'], 3, 'f')} | {t['claimed']} / {t['confirmed']} | {_number(t['median_error'])} |"
+            f"{_number(t['median_time_s'], 3, 'f')} | {t['claimed']} / {t['confirmed']} / {t['false']} | "
+            f"{_number(t['median_error'])} |"
         )
     return "\n".join(lines)
 
 
-def runs_table(rows: Sequence[dict], residual_tol: float) -> str:
+def time_table(rows: Sequence[dict], targets: Sequence[float] = TARGETS) -> str:
+    """Per model and solver: the time (and knob) of the fastest run with error ≤ each target."""
+    reached = {target: time_to(rows, target) for target in targets}
+    head = "| model | solver | " + " | ".join(f"time to {t:g} (s) | at" for t in targets) + " |"
+    lines = [head, "|:---|:---|" + "---:|:---|" * len(targets)]
+    for model in sorted({r["model"] for r in rows}):
+        for solver in sorted({solver_label(r) for r in rows if r["model"] == model}):
+            cells = []
+            for target in targets:
+                row = reached[target].get((model, solver))
+                cells += [_number(row["wall_time_s"], 3, "f"), row["knob"]] if row else ["not reached", "—"]
+            lines.append(f"| {model} | {solver} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def ratio_table(rows: Sequence[dict], targets: Sequence[float] = TARGETS) -> str:
+    """Per model and peer: qdframe's fastest time to each target against the peer's."""
+    lines = ["| model | peer | " + " | ".join(f"to {t:g}: qdframe (s) | peer (s) | peer ÷ qdframe" for t in targets) + " |",
+             "|:---|:---|" + "---:|---:|---:|" * len(targets)]
+    table = {target: {(r["model"], r["peer"]): r for r in ratios(rows, target)} for target in targets}
+    for key in sorted(table[targets[0]]) if targets else []:
+        cells = []
+        for target in targets:
+            entry = table[target][key]
+            cells += [_number(entry["qdframe_s"], 3, "f"), _number(entry["peer_s"], 3, "f"),
+                      _number(entry["ratio"], 1, "f")]
+        lines.append(f"| {key[0]} | {key[1]} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def runs_table(rows: Sequence[dict]) -> str:
     lines = [
-        "| model | N | solver | status | iterations | time (s) | I | boundary | inclusion | consistency "
-        "| solution error | residual check |",
-        "|:---|---:|:---|:---|---:|---:|---:|---:|---:|---:|---:|:---|",
+        "| model | solver | knob | points | status | claim | iterations | time (s) | error | end error "
+        "| switch error | reference | ref. uncertainty | residual error |",
+        "|:---|:---|:---|---:|:---|:---|---:|---:|---:|---:|---:|:---|---:|---:|",
     ]
-    for r in sorted(rows, key=lambda r: (r["model"], r["nodes"], solver_label(r))):
-        check = "pass" if valid(r, residual_tol) else "fail"
+    for r in sorted(rows, key=lambda r: (r["model"], solver_label(r), _knob_order(r))):
         lines.append(
-            f"| {r['model']} | {r['nodes']} | {solver_label(r)} | {r['status']} | {r.get('iterations') or 0} | "
-            f"{_number(r.get('wall_time_s'), 2, 'f')} | {_number(r.get('I'))} | {_number(r.get('boundary_error'))} | "
-            f"{_number(r.get('inclusion_residual'))} | {_number(r.get('consistency_error'))} | "
-            f"{_number(r.get('solution_error'))} | {check} |"
+            f"| {r['model']} | {solver_label(r)} | {r.get('knob')} | {r.get('nodes') or '—'} | {r['status']} | "
+            f"{r.get('claim')} | {r.get('iterations') or 0} | {_number(r.get('wall_time_s'), 2, 'f')} | "
+            f"{_number(r.get('error'))} | {_number(r.get('end_error'))} | {_number(r.get('switch_error'))} | "
+            f"{r.get('reference_kind') or '—'} | {_number(r.get('reference_uncertainty'))} | "
+            f"{_number(r.get('residual_error'))} |"
         )
     return "\n".join(lines)
 
 
-def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: float | None = None) -> dict[str, Path]:
-    """Write the three figures and report.md into `out`; returns their paths."""
+def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: float | None = None,
+                 references: dict[str, str] | None = None) -> dict[str, Path]:
+    """Write the figures and report.md into `out`; returns their paths. `references`:
+    {model: how its reference was made} (:func:`~.references.cross_check`)."""
     out = Path(out)
     settings = meta.get("settings", {})
-    tol = float(settings.get("residual_tol", 5e-3))
+    claim_tol = float(settings.get("claim_tol", 5e-3))
     limit = settings.get("time_limit_s")
     paths = {name: out / filename for name, filename in FIGURES.items()}
+    models = sorted({r["model"] for r in rows})
     if rows:
-        plot_speed_vs_error(rows, paths["speed_vs_error"], tol)
-        plot_error_vs_nodes(rows, paths["error_vs_nodes"])
+        plot_work_precision(rows, paths["work_precision"])
+        (out / "work_precision").mkdir(exist_ok=True)
+        for model in models:
+            paths[f"work_precision:{model}"] = out / "work_precision" / f"{model}.png"
+            plot_work_precision(rows, paths[f"work_precision:{model}"], models=[model])
         plot_histories(rows, paths["history"])
-    peers = sorted({r["direction"] for r in rows if r["direction"] in PEER_MODELS})
-    peer_keys = {(r["model"], r["nodes"]) for r in rows if r["direction"] in peers}
-    shared = [r for r in rows if (r["model"], r["nodes"]) in peer_keys]
+    peers = sorted({r["direction"] for r in rows if r["direction"] in PEERS})
     machines = sorted({r["machine"] for r in rows if r.get("machine")})
     loads = [r["load_average"] for r in rows if r.get("load_average") is not None]
     total = sum(r["wall_time_s"] for r in rows if r.get("wall_time_s"))
+    false = [r for r in rows if r.get("claim") == "false"]
+    missed = [r for r in rows if r.get("claim") == "missed"]
     text = [
         f"# qdframe bench run — suite `{settings.get('suite', '?')}`",
         "",
         "| | |",
         "|:---|:---|",
-        f"| runs | {len(rows)} ({len({r['model'] for r in rows})} models, "
-        f"{len({solver_label(r) for r in rows})} solvers, grids {sorted({r['nodes'] for r in rows})}) |",
+        f"| runs | {len(rows)} ({len(models)} models, {len({solver_label(r) for r in rows})} solvers) |",
         f"| command | `{meta.get('command') or '—'}` |",
         f"| executor | {meta.get('executor', 'local')} |",
         f"| machine | {'; '.join(machines) or '—'} |",
         f"| load average (1 min) at run start | {_range(loads)} |",
         f"| sum of run wall times | {total:.1f} s" + (f"; sweep wall time {seconds:.1f} s |" if seconds else " |"),
         f"| budget per run | {settings.get('max_iter', '—')} iterations, time limit {limit} s |",
-        f"| residual tolerance | {tol:g} |",
+        f"| claim tolerance | a `solved` promises error ≤ {claim_tol:g} (an accuracy= run: its target) |",
         f"| qdframe | {meta.get('qdframe_version', '?')}, updated {meta.get('updated_at', '?')} |",
         "",
         "## Definitions",
         "",
-        "- **error** — the error against the model's exact solution, max over nodes and states of |x − x*|, "
-        "where the model knows one (paper-7.1); otherwise the **residual error** = max(boundary error, inclusion "
-        "residual, consistency error, surface error), qdframe's own checks (`Functional.residuals`) on the run's "
-        "grid. Peers are judged by the same checks on the same grid.",
-        f"- **success rate** — runs that report success (status `solved`) *and* pass the residual check "
-        f"(residual error ≤ {tol:g}), in % of the solver's runs (qpbenchmark's definition).",
-        "- **correct rate** — runs whose own success report agrees with the residual check: found == (found and "
-        "valid), in %. Runs that do not claim success count as correct; only an unconfirmed `solved` lowers it "
-        "(qpbenchmark's definition).",
-        f"- **runtime (shm)** — qpbenchmark's shifted geometric mean of wall times in seconds, shift sh = {SHIFT:g}: "
-        "exp(mean(log(t + sh))) − sh, a run that did not report success counted at the time limit, then divided "
-        "by the smallest such mean over the solvers (1.0 = fastest; Y = Y times slower). Solvers that ran "
-        "different problems are not comparable by it: see the table on the shared problems.",
-        "- **status** — qdframe's (`solved`: I ≤ tol, `stationary`, `max_iter`, `failed`) plus `time_limit`; "
-        "for a peer, `solved` is the peer's own success report (nosnoc: IPOPT converged at the last homotopy step).",
+        "- **error** — max over the run's own time grid and the states of |x − x_ref|, against the model's "
+        "reference (below: how each was made). For a problem without a unique solution the reference is the "
+        "true motion replayed from the run's own trajectory, and the error is the larger of that distance and "
+        "how far the replayed motion misses the boundary conditions. **end error**: at t = T (replays: the "
+        "miss); **switch error**: the largest distance from a known switch time to the nearest one the solver "
+        "reported. qdframe's own residuals (**residual error**) are shown beside, never used to judge.",
+        f"- **success rate** — runs that report success (status `solved`) *and* have error ≤ the claim "
+        f"tolerance ({claim_tol:g}; an accuracy= run: its target), in % of the solver's runs.",
+        "- **correct rate** — runs whose success report the error does not contradict, in % (qpbenchmark's "
+        "definition): a `solved` with a larger error is a **false success** (listed below); a run that does not "
+        "claim success counts as correct.",
+        f"- **runtime (shm)** — qpbenchmark's shifted geometric mean of wall times, shift {SHIFT:g} s, a run "
+        "without a confirmed success counted at the time limit, ÷ the smallest over the solvers.",
+        "- **time to ε** — the wall time of a solver's fastest run with error ≤ ε, whatever its status; "
+        "**peer ÷ qdframe** — the peer's fastest such time over qdframe's fastest (any qdframe line), on the "
+        "same model: above 1, qdframe is faster.",
         "",
-        "## Results by solver (all runs)",
-        "",
-        summary_table(rows, tol, limit),
+        "## References",
         "",
     ]
-    if peers and shared:
-        text += [
-            f"## On the problems {', '.join(peers)} also ran",
-            "",
-            f"Models {', '.join(sorted({m for m, _ in peer_keys}))} on grids {sorted({n for _, n in peer_keys})}:",
-            "",
-            summary_table(shared, tol, limit),
-            "",
-        ]
+    text += [f"- **{m}** — {(references or {}).get(m, '—')}" for m in models]
     text += [
-        "## Figures",
         "",
-        "![speed against error](speed_vs_error.png)",
+        "## Work-precision",
         "",
-        "![error against N](error_vs_nodes.png)",
+        "![work-precision diagrams](work_precision.png)",
         "",
-        "![I against iteration](objective_history.png)",
+        "One diagram per model is in `work_precision/`. Filled markers: runs that reported success; hollow: "
+        "runs that did not; crosses: failed or stopped by the time limit.",
         "",
-        "## Runs",
+        "## Time to an error",
         "",
-        runs_table(rows, tol),
+        time_table(rows),
         "",
     ]
+    if peers:
+        text += ["## Against the peers", "", ratio_table(rows), ""]
+    text += [
+        "## Results by solver",
+        "",
+        summary_table(rows, limit),
+        "",
+        "## Success reports the error contradicts",
+        "",
+    ]
+    text += ([f"- false success: {r['model']} {solver_label(r)} {r['knob']}: error {_number(r.get('error'))} > "
+              f"{r['claim_tol']:g}" for r in false] or ["- none: every `solved` has error ≤ its claim tolerance"])
+    text += [f"- not claimed, within tolerance: {r['model']} {solver_label(r)} {r['knob']} ({r['status']}, error "
+             f"{_number(r.get('error'))})" for r in missed]
+    text += ["", "![I against iteration](objective_history.png)", "", "## Runs", "", runs_table(rows), ""]
     if peers:
         text += ["## Peers", "", PEER_NOTE, ""]
         for r in rows:
             if r["direction"] in peers:
-                text.append(f"- {r['model']}, N = {r['nodes']}: {r['status']} — {r.get('message') or ''}")
+                text.append(f"- {r['model']}, {r['direction']} {r['knob']}: {r['status']} — {r.get('message') or ''}")
         text.append("")
     skipped = meta.get("skipped_directions") or {}
     failed = [r for r in rows if r["status"] == "failed" and r["direction"] not in peers]
-    if skipped or failed:
-        text += ["## Not run or failed", ""]
+    unjudged = [r for r in rows if r.get("error") is None and r["status"] != "failed"]
+    if skipped or failed or unjudged:
+        text += ["## Not run, failed or not judged", ""]
         text += [f"- direction `{name}` skipped: {why}" for name, why in sorted(skipped.items())]
-        text += [f"- {r['model']} {solver_label(r)} N = {r['nodes']}: {r.get('message')}" for r in failed]
+        text += [f"- {r['model']} {solver_label(r)} {r['knob']}: {r.get('message')}" for r in failed + unjudged]
         text.append("")
     paths["report"] = out / "report.md"
     paths["report"].write_text("\n".join(text))
@@ -361,13 +436,14 @@ def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: flo
 
 
 PEER_NOTE = (
-    "nosnoc (FESD + homotopy + IPOPT through CasADi) solves each problem as an optimal-control problem: "
-    "the bounded input is a control with box bounds, its cost is nosnoc's example cost, the end state a terminal "
-    "constraint; 10 control stages × ⌈(N − 1)/10⌉ finite elements, Radau IIA with 2 stage points. Its trajectory "
-    "is read as nosnoc's collocation polynomials: x(t_k) and z(t_k) = x'(t_k) at qdframe's N uniform nodes "
-    "(at an element boundary, the mean of the two one-sided slopes), and ξ = (x, z) is judged by "
-    "`Functional.terms`/`Functional.residuals` like any qdframe run. Its iterations are IPOPT iterations summed "
-    "over the homotopy; its wall time includes building the CasADi problem and IPOPT solver (shown in the message)."
+    "nosnoc (FESD + homotopy + IPOPT through CasADi) solves each problem it can state as an optimal-control "
+    "problem: the bounded input is a control with box bounds, its cost is nosnoc's example cost, the end state a "
+    "terminal constraint; 10 control stages × ⌈(N − 1)/10⌉ finite elements, Radau IIA with 2 stage points; its "
+    "trajectory is read from its collocation polynomials at N uniform times, and its own piecewise-constant "
+    "control drives the replay that judges it. solve_bvp (scipy) solves the models it can state as ODE "
+    "boundary-value problems with Sgn(s) regularized as clip(s/ε, −1, 1), ε = its tol, from 11 uniform nodes; "
+    "it is judged on its own final mesh. nosnoc's iterations are IPOPT iterations summed over the homotopy; "
+    "its wall time includes building the CasADi problem and IPOPT solver."
 )
 
 

@@ -1,18 +1,20 @@
-"""`qdframe bench run`: a sweep of models × direction solvers × line searches × grids (and peers).
+"""`qdframe bench run`: work-precision sweeps of qdframe's solvers and the peers.
 
-Each run is one :class:`Case`; :func:`run_case` turns it into one row (a plain dict) in
-whatever process executes it — this one (``local``) or a dask worker (``dask``). The
-driver alone writes the files, after every row: ``results.json`` (every row with its
-history) and ``results.csv`` (the same rows without histories), each replaced atomically,
-so an interrupted sweep loses at most the runs in flight. ``--resume`` keeps the rows
-present in both files (keyed by model, direction, line search, nodes) and runs the rest.
+Each run is one :class:`Case`: a model, a solver (a direction and line search, or a peer)
+and one setting of that solver's accuracy knob — the grid N, qdframe's ``accuracy=``
+target, solve_bvp's ``tol``, nosnoc's finite elements (through N). :func:`run_case` turns
+it into one row (a plain dict) in whatever process executes it — this one (``local``) or a
+dask worker (``dask``). The driver alone writes the files, after every row:
+``results.json`` (every row with its history) and ``results.csv`` (the same rows without
+histories), each replaced atomically, so an interrupted sweep loses at most the runs in
+flight. ``--resume`` keeps the rows present in both files (keyed by model, direction, line
+search, knob) and runs the rest.
 
-Error measures of a row (all from qdframe's own checks, ``Functional.residuals``):
-
-* ``residual_error`` = max(boundary error, inclusion residual, consistency error,
-  surface error): how far the trajectory is from solving the problem on the grid;
-* ``error`` = the error against the model's exact solution (max over nodes and states of
-  |x − x*|) where the model knows one, else ``residual_error`` (``error_kind`` says which).
+Every row is judged by one yardstick, :func:`~.references.judge`: ``error`` is the max over
+the run's own time grid of |x − x_ref| against the model's reference (exact where the
+problem has one solution, else the true motion replayed from the run's own trajectory),
+with ``end_error`` and ``switch_error`` beside it. qdframe's own checks
+(``Functional.residuals``: ``residual_error``) are kept as a second opinion.
 """
 
 from __future__ import annotations
@@ -41,21 +43,31 @@ from ..model import InclusionModel
 from ..progress import bar
 from ..registry import available, lookup
 from .models import BENCH_MODELS
+from .bvp_peer import BVP_MODELS, run_solve_bvp
 from .peers import PEER_MODELS, run_nosnoc
+from .references import judge
 
-FORMAT = "qdframe-bench-run/1"
-KEY_FIELDS = ("model", "direction", "line_search", "nodes")
+FORMAT = "qdframe-bench-run/2"
+KEY_FIELDS = ("model", "direction", "line_search", "knob")
 FIELDS = (
-    "model", "direction", "line_search", "nodes", "status", "found", "iterations", "wall_time_s",
-    "setup_time_s", "objective", "I", "boundary_error", "inclusion_residual", "consistency_error",
-    "surface_error", "solution_error", "residual_error", "error", "error_kind", "max_iter",
-    "time_limit_s", "machine", "load_average", "started_at", "message",
+    "model", "solver", "direction", "line_search", "knob", "nodes", "status", "found", "iterations", "wall_time_s",
+    "setup_time_s", "error", "end_error", "switch_error", "reference_kind", "reference_uncertainty",
+    "reference_time_s", "claim_tol", "claim", "objective", "I", "boundary_error", "inclusion_residual",
+    "consistency_error", "surface_error", "residual_error", "error_estimate", "max_iter", "time_limit_s",
+    "machine", "load_average", "started_at", "message",
 )
 PAPER_MODELS = ("paper-7.1", "paper-7.2", "paper-7.3")
+FRICTION_MODELS = ("block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line",
+                   "slide-after-reaching", "two-surface-sliding")
+PLUGIN_MODELS = ("coulomb-block", "sliding-mode", "double-pendulum", "velocity-range", "disturbed-control",
+                 "intersecting-balls")
+LONG_HORIZON = ("stick-slip-oscillator",)
 PEER_PROBLEMS = tuple(BENCH_MODELS)
-# direction preference of the quick suite: the default, the paper's, then one QP backend
+# direction preference of the suites: the default, the paper's, then the QP backends
 DIRECTION_PREFERENCE = ("gauss-newton", "native", "qpsolvers:daqp", "clarabel", "osqp", "cvxpy")
 RESIDUAL_TOL = 5e-3  # the paper's accuracy (boundary error ≤ 5e-3, Section 7)
+CLAIM_TOL = RESIDUAL_TOL  # a run that reports success promises error ≤ this (an accuracy= run: its target)
+ACCURACY_DIRECTION = "gauss-newton"  # accuracy= runs: the default direction, a line of their own
 
 
 class MissingDependency(QdframeError):
@@ -65,7 +77,10 @@ class MissingDependency(QdframeError):
 @dataclass(frozen=True)
 class Suite:
     """A named sweep. `directions`: how many available directions (None: all);
-    `every_line_search`: each direction with every line search, else with its own."""
+    `every_line_search`: each direction with every line search, else with its own.
+    Each solver sweeps its own accuracy knob: gauss-newton the `grids` and the `accuracy`
+    targets, the other directions the `other_grids`, nosnoc the `peer_grids` (N − 1 finite
+    elements), solve_bvp the `bvp_tols`."""
 
     name: str
     models: tuple[str, ...] | None  # None: every registered model and the peer problems
@@ -74,34 +89,66 @@ class Suite:
     max_iter: int
     time_limit_s: float
     every_line_search: bool = False
+    accuracy: tuple[float, ...] = ()
+    other_grids: tuple[int, ...] | None = None  # None: the grids
+    peer_grids: tuple[int, ...] | None = None
+    bvp_tols: tuple[float, ...] = ()
 
 
+STANDARD_MODELS = PAPER_MODELS + PLUGIN_MODELS + FRICTION_MODELS + PEER_PROBLEMS + LONG_HORIZON
 SUITES = {
-    "quick": Suite("quick", PAPER_MODELS + PEER_PROBLEMS, 3, (11, 51), max_iter=100, time_limit_s=60.0),
-    "full": Suite("full", None, None, (11, 101, 1001), max_iter=500, time_limit_s=600.0, every_line_search=True),
+    "quick": Suite("quick", ("paper-7.1", "block-stop-stick", "slide-after-reaching") + PEER_PROBLEMS, 2,
+                   (11, 41, 161), max_iter=100, time_limit_s=30.0, accuracy=(1e-3, 1e-6), other_grids=(11, 41),
+                   peer_grids=(11, 41), bvp_tols=(1e-3, 1e-6)),
+    "standard": Suite("standard", STANDARD_MODELS, 2, (11, 101, 1001, 10001, 100001), max_iter=500,
+                      time_limit_s=60.0, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101),
+                      peer_grids=(11, 51, 101, 201), bvp_tols=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8)),
+    "full": Suite("full", STANDARD_MODELS, None, (11, 101, 1001, 10001, 100001), max_iter=500, time_limit_s=600.0,
+                  every_line_search=True, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101, 1001),
+                  peer_grids=(11, 51, 101, 201), bvp_tols=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8)),
 }
 
 
 @dataclass(frozen=True)
 class Case:
     """One run. `peer` names the other tool (then `direction` is the peer's name and
-    `line_search` its inner solver), None for qdframe itself."""
+    `line_search` its inner solver), None for qdframe itself. The knob: `nodes` (qdframe's
+    grid, nosnoc's N − 1 finite elements), `accuracy` (qdframe's ``accuracy=``, no grid
+    given) or `tol` (solve_bvp's)."""
 
     model: str
     direction: str
     line_search: str
-    nodes: int
+    nodes: int | None
     max_iter: int
     time_limit_s: float | None
     peer: str | None = None
+    accuracy: float | None = None
+    tol: float | None = None
 
     @property
-    def key(self) -> tuple[str, str, str, int]:
-        return (self.model, self.direction, self.line_search, self.nodes)
+    def knob(self) -> str:
+        if self.accuracy is not None:
+            return f"accuracy={self.accuracy:g}"
+        if self.tol is not None:
+            return f"tol={self.tol:g}"
+        return f"N={self.nodes}"
+
+    @property
+    def solver(self) -> str:
+        """The line of a work-precision diagram this run belongs to."""
+        if self.peer == "solve_bvp":
+            return "solve_bvp"
+        label = f"{self.direction} / {self.line_search}"
+        return label + " (accuracy=)" if self.accuracy is not None else label
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        return (self.model, self.direction, self.line_search, self.knob)
 
     @property
     def label(self) -> str:
-        return f"{self.model} {self.direction}/{self.line_search} N={self.nodes}"
+        return f"{self.model} {self.solver} {self.knob}"
 
 
 @dataclass
@@ -181,13 +228,16 @@ def plan(
     peers: bool = False,
     max_iter: int | None = None,
     time_limit_s: float | None = None,
+    accuracy: Sequence[float] | None = None,
+    bvp_tols: Sequence[float] | None = None,
 ) -> Plan:
-    """The cases of a sweep: the suite's choices, each overridden by an explicit list."""
+    """The cases of a sweep: the suite's choices, each overridden by an explicit list
+    (`nodes` sets every solver's grids, peers' too; `accuracy` and `bvp_tols` the other knobs)."""
     if suite not in SUITES:
         raise InputError("--suite", f"one of: {', '.join(SUITES)}", suite)
     spec = SUITES[suite]
     known = model_names()
-    models = list(models) if models is not None else list(spec.models) if spec.models is not None else known
+    models = list(models) if models is not None else [m for m in spec.models or known if m in known]
     for name in models:
         if name not in known:
             raise UnknownNameError("model", name, known)
@@ -203,6 +253,10 @@ def plan(
     grids = tuple(nodes) if nodes is not None else spec.grids
     if any(isinstance(n, bool) or int(n) != n or n < 2 for n in grids):
         raise InputError("--nodes", "node counts ≥ 2 like 11,51", ",".join(map(str, grids)))
+    other_grids = grids if nodes is not None or spec.other_grids is None else spec.other_grids
+    peer_grids = grids if nodes is not None or spec.peer_grids is None else spec.peer_grids
+    targets = tuple(accuracy) if accuracy is not None else spec.accuracy
+    tols = tuple(bvp_tols) if bvp_tols is not None else spec.bvp_tols
     max_iter = spec.max_iter if max_iter is None else max_iter
     time_limit_s = spec.time_limit_s if time_limit_s is None else time_limit_s
     cases = []
@@ -214,24 +268,36 @@ def plan(
                 pairs = sorted(searches)
             else:
                 pairs = [_default_line_search(direction)]
+            ladder = grids if direction == ACCURACY_DIRECTION else other_grids
             for search in pairs:
-                for n in grids:
-                    cases.append(Case(model, direction, search, int(n), max_iter, time_limit_s))
+                cases += [Case(model, direction, search, int(n), max_iter, time_limit_s) for n in ladder]
+            if direction == ACCURACY_DIRECTION:
+                search = _default_line_search(direction)
+                cases += [Case(model, direction, search, None, max_iter, time_limit_s, accuracy=float(e))
+                          for e in targets]
     if peers:
-        for peer, problems in PEER_MODELS.items():
-            for model in models:
-                if model in problems:
-                    cases += [Case(model, peer, "ipopt", int(n), max_iter, time_limit_s, peer=peer) for n in grids]
+        for model in models:
+            if model in PEER_MODELS["nosnoc"]:
+                cases += [Case(model, "nosnoc", "ipopt", int(n), max_iter, time_limit_s, peer="nosnoc")
+                          for n in peer_grids]
+            if model in BVP_MODELS:
+                cases += [Case(model, "solve_bvp", "scipy", None, max_iter, time_limit_s, peer="solve_bvp", tol=float(e))
+                          for e in tols]
     settings = {
         "suite": suite,
         "models": list(models),
         "directions": list(directions),
         "line_searches": list(line_searches) if line_searches else ("every" if spec.every_line_search else "own"),
         "nodes": list(grids),
+        "other_nodes": list(other_grids),
+        "peer_nodes": list(peer_grids),
+        "accuracy": list(targets),
+        "bvp_tols": list(tols),
         "peers": bool(peers),
         "max_iter": max_iter,
         "time_limit_s": time_limit_s,
         "residual_tol": RESIDUAL_TOL,
+        "claim_tol": CLAIM_TOL,
     }
     return Plan(cases, skipped, settings)
 
@@ -291,9 +357,10 @@ class _Deadline(DirectionSolver):
 def run_case(case: Case) -> dict:
     """Run one case and return its row (never raises: a failure is a row with status failed)."""
     row = {name: None for name in FIELDS}
-    row.update(model=case.model, direction=case.direction, line_search=case.line_search, nodes=case.nodes,
-               max_iter=case.max_iter, time_limit_s=case.time_limit_s, machine=machine(),
-               load_average=_load_average(), started_at=_now(), setup_time_s=0.0)
+    row.update(model=case.model, solver=case.solver, direction=case.direction, line_search=case.line_search,
+               knob=case.knob, nodes=case.nodes, max_iter=case.max_iter, time_limit_s=case.time_limit_s,
+               machine=machine(), load_average=_load_average(), started_at=_now(), setup_time_s=0.0,
+               claim_tol=case.accuracy if case.accuracy is not None else CLAIM_TOL)
     history: dict[str, list] = {"iteration": [], "objective": [], "I": [], "time_s": []}
     clock = time.perf_counter()
     try:
@@ -309,8 +376,20 @@ def run_case(case: Case) -> dict:
     except Exception as exc:  # a failing run is a result, not an abort
         row.update(status="failed", message=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - clock)
     row["found"] = row["status"] == "solved"
+    row["claim"] = claim(row)
     row["history"] = history
     return _finite(row)
+
+
+def claim(row: dict) -> str:
+    """How a run's own success report compares with its reference error (qpbenchmark's
+    "correct"): "confirmed" (solved, error ≤ claim_tol), "false" (solved, error > claim_tol
+    or unknown), "missed" (not solved, error ≤ claim_tol), "none" (neither)."""
+    error, tol = row.get("error"), row.get("claim_tol")
+    within = error is not None and tol is not None and error <= tol
+    if row.get("status") == "solved":
+        return "confirmed" if within else "false"
+    return "missed" if within else "none"
 
 
 def _ignorable(warning) -> bool:
@@ -321,51 +400,67 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
     model = resolve_model(case.model)
     solver = make_direction(case.direction)
     timed = _Deadline(solver, case.time_limit_s) if case.time_limit_s else solver
-    result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search), estimate=False,
-                   max_iter=case.max_iter)
+    result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search),
+                   estimate=case.accuracy is not None, accuracy=case.accuracy, max_iter=case.max_iter)
     status, message = result.status, result.message
     if isinstance(timed, _Deadline) and timed.expired:
         status = "time_limit"
         message = f"time limit {case.time_limit_s:g} s reached after {result.iterations} iterations"
     row.update(status=status, message=message, iterations=result.iterations, wall_time_s=result.wall_time_s,
-               objective=result.objective, I=result.I, boundary_error=result.boundary_error,
+               nodes=result.nodes, objective=result.objective, I=result.I, boundary_error=result.boundary_error,
                inclusion_residual=result.inclusion_residual, consistency_error=result.consistency_error,
-               surface_error=result.surface_error, solution_error=result.solution_error)
+               surface_error=result.surface_error, error_estimate=result.error_estimate)
     for record in result.history:
         for name in history:
             history[name].append(getattr(record, name))
-    _errors(row)
+    _residual_error(row)
+    _judge(row, model, result.t, result.x, result.z, result.u, switch_times=result.switch_times)
 
 
 def _run_peer(case: Case, row: dict, history: dict) -> None:
-    if case.peer != "nosnoc":
-        raise InputError("peer", "nosnoc", case.peer)
     model = resolve_model(case.model)
-    peer = run_nosnoc(model, case.nodes)
+    if case.peer == "nosnoc":
+        peer = run_nosnoc(model, case.nodes)
+    elif case.peer == "solve_bvp":
+        peer = run_solve_bvp(model, case.tol)
+    else:
+        raise InputError("peer", "nosnoc or solve_bvp", case.peer)
     row.update(status=peer.status, message=peer.message, iterations=peer.iterations,
                wall_time_s=peer.wall_time_s, setup_time_s=peer.setup_time_s)
     if peer.x is None:
         return
-    functional = Functional(model, Grid(model.T, case.nodes), signs="band")  # Filippov's set, no selections to choose
-    xi = functional.pack(peer.x, peer.z)
-    terms, residuals = functional.terms(xi), functional.residuals(xi)
-    exact = model.exact_solution(functional.grid.t)
-    row.update(objective=terms.objective, I=terms.I, boundary_error=residuals.boundary_error,
-               inclusion_residual=residuals.inclusion_residual, consistency_error=residuals.consistency_error,
-               surface_error=residuals.surface_error,
-               solution_error=None if exact is None else float(np.max(np.abs(functional.split(xi)[0] - exact))))
+    t = peer.t if peer.t is not None else Grid(model.T, case.nodes).t
+    row["nodes"] = int(t.size)
+    if np.all(np.diff(t) > 0):  # qdframe's checks need a grid; the peer's own mesh is one
+        functional = Functional(model, Grid.from_mesh(t) if peer.t is not None else Grid(model.T, t.size),
+                                signs="band")  # Filippov's set, no selections to choose
+        xi = functional.pack(peer.x, peer.z)
+        terms, residuals = functional.terms(xi), functional.residuals(xi)
+        row.update(objective=terms.objective, I=terms.I, boundary_error=residuals.boundary_error,
+                   inclusion_residual=residuals.inclusion_residual, consistency_error=residuals.consistency_error,
+                   surface_error=residuals.surface_error)
+        _residual_error(row)
     for record in peer.history:
         for name in history:
             history[name].append(record[name])
-    _errors(row)
+    _judge(row, model, t, peer.x, peer.z, None, inputs=peer.inputs)
 
 
-def _errors(row: dict) -> None:
+def _residual_error(row: dict) -> None:
     parts = [row["boundary_error"], row["inclusion_residual"], row["consistency_error"], row["surface_error"] or 0.0]
     row["residual_error"] = float(max(parts))
-    known = row["solution_error"] is not None
-    row["error"] = row["solution_error"] if known else row["residual_error"]
-    row["error_kind"] = "solution" if known else "residual"
+
+
+def _judge(row: dict, model: InclusionModel, t, x, z, u, switch_times=None, inputs=None) -> None:
+    """The row's error against the model's reference (:func:`~.references.judge`)."""
+    try:
+        verdict = judge(model, t, x, z, u, switch_times=switch_times, inputs=inputs)
+    except Exception as exc:  # a reference that cannot be made leaves the error unknown, and says why
+        row["message"] = "; ".join(filter(None, [row["message"], f"no reference error: {type(exc).__name__}: {exc}"]))
+        return
+    row.update(error=verdict.error, end_error=verdict.end_error, switch_error=verdict.switch_error,
+               reference_kind=verdict.kind, reference_uncertainty=verdict.uncertainty,
+               reference_time_s=verdict.seconds)
 
 
 def _finite(value):
@@ -397,8 +492,8 @@ def _now() -> str:
 # ------------------------------------------------------------------------- the files
 
 
-def row_key(row: dict) -> tuple[str, str, str, int]:
-    return (str(row["model"]), str(row["direction"]), str(row["line_search"]), int(row["nodes"]))
+def row_key(row: dict) -> tuple[str, str, str, str]:
+    return (str(row["model"]), str(row["direction"]), str(row["line_search"]), str(row["knob"]))
 
 
 class ResultStore:
@@ -483,7 +578,8 @@ def _csv_cell(value) -> str:
 
 
 INT_FIELDS = {"nodes", "iterations", "max_iter"}
-TEXT_FIELDS = {"model", "direction", "line_search", "status", "error_kind", "machine", "started_at", "message"}
+TEXT_FIELDS = {"model", "solver", "direction", "line_search", "knob", "status", "reference_kind", "claim",
+               "machine", "started_at", "message"}
 
 
 def read_csv(path: str | Path) -> list[dict]:
@@ -575,8 +671,9 @@ def _execute_dask(cases, on_row, scheduler, workers) -> None:
                 row = future.result()
             except Exception as exc:  # the worker died or the task could not run
                 row = {name: None for name in FIELDS}
-                row.update(model=case.model, direction=case.direction, line_search=case.line_search,
-                           nodes=case.nodes, status="failed", found=False, max_iter=case.max_iter,
+                row.update(model=case.model, solver=case.solver, direction=case.direction, line_search=case.line_search,
+                           knob=case.knob, nodes=case.nodes, status="failed", found=False, claim="none",
+                           max_iter=case.max_iter,
                            time_limit_s=case.time_limit_s, message=f"dask: {type(exc).__name__}: {exc}",
                            history={"iteration": [], "objective": [], "I": [], "time_s": []})
             on_row(row)
@@ -642,7 +739,7 @@ def run_sweep(
         store.add(row, order)
         count[0] += 1
         error = row.get("error")
-        line = (f"[{count[0]}/{len(pending)}] {row['model']} {row['direction']}/{row['line_search']} N={row['nodes']}: "
+        line = (f"[{count[0]}/{len(pending)}] {row['model']} {row['solver']} {row['knob']}: "
                 f"{row['status']}, {row['iterations']} it, {_fmt_seconds(row.get('wall_time_s'))}, "
                 f"error {'—' if error is None else f'{error:.1e}'}")
         if runs.disable:

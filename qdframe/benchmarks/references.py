@@ -1,0 +1,199 @@
+"""The one yardstick of `qdframe bench run`: a trajectory's error against a reference.
+
+Every row, qdframe's and each peer's, is judged here from its own time grid t, states x,
+velocities z (and controls u), never from the solver's own residuals. The reference is one
+of three kinds:
+
+* ``exact`` — the model's closed-form solution (``model.exact_solution``; its
+  ``switch_times``), where the problem has exactly one solution. Once per sweep it is
+  cross-checked against an independent integrator (:func:`~.filippov.reference`: DOP853,
+  rtol = atol = 1e-12, one event per switching function, sliding by its equivalent control)
+  where that integrator can state the model; report.md gives the discrepancy.
+* ``events replay`` — a problem whose solutions form a set (a bounded input to choose)
+  and that :mod:`.filippov` can state with an input: the true Filippov motion from the
+  trajectory's x(0) driven by the input recovered from the trajectory itself (the peer's
+  own input where it has one), integrated with event location.
+* ``projection replay`` — any other problem without a unique solution: the true motion
+  x_ref' = P_F(x_ref)(z(t)) that Filippov's theorem builds from the trajectory
+  (:func:`~.replay.replay`).
+
+Measures (max norms over states):
+
+* ``error`` — max over the trajectory's own grid of |x(t_k) − x_ref(t_k)|; for a replay,
+  the larger of that and ``end_miss``, how far the true motion misses the boundary
+  conditions (a trajectory near a motion that misses them is near no solution);
+* ``end_error`` — |x(T) − x_ref(T)| (exact), or the replay's ``end_miss``;
+* ``switch_error`` — the largest distance from a known switch time to the nearest switch
+  time the solver reported (None where the model has none or the solver reports none).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..model import InclusionModel
+
+EXACT, EVENTS, PROJECTION = "exact", "events replay", "projection replay"
+RESTING = 1e-9  # |v| below this counts as v = 0 when an input is recovered from a trajectory
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """A trajectory judged against its reference."""
+
+    error: float | None
+    end_error: float | None
+    switch_error: float | None
+    kind: str
+    uncertainty: float | None  # the reference's own accuracy where it is not a closed form
+    seconds: float  # time spent making the reference for this row
+    recipe: str
+
+
+def kind(model: InclusionModel) -> str:
+    """Which reference judges `model`'s rows."""
+    if model.exact_solution(np.array([0.0, model.T])) is not None:
+        return EXACT
+    if model.name in INPUTS:
+        return EVENTS
+    return PROJECTION
+
+
+def judge(
+    model: InclusionModel,
+    t: np.ndarray,
+    x: np.ndarray,
+    z: np.ndarray,
+    u: np.ndarray | None = None,
+    switch_times: Sequence[float] | None = None,
+    inputs: Callable[[float], np.ndarray] | None = None,
+) -> Judgement:
+    """Judge the trajectory (t, x, z, u) of `model`; `inputs` is the peer's own input u(t)
+    for an events replay (else it is recovered from the trajectory, :data:`INPUTS`)."""
+    start = time.perf_counter()
+    t, x, z = np.asarray(t, float), np.asarray(x, float), np.asarray(z, float)
+    which = kind(model)
+    if which == EXACT:
+        exact = np.asarray(model.exact_solution(t), float)
+        error = float(np.max(np.abs(x - exact)))
+        end = float(np.max(np.abs(x[-1] - exact[-1])))
+        return Judgement(error, end, _switch_error(model, switch_times), EXACT, None,
+                         time.perf_counter() - start, "the model's closed-form solution at the trajectory's own times")
+    if which == EVENTS:
+        from .filippov import integrate, statement
+
+        drive = inputs if inputs is not None else INPUTS[model.name](t, x, z, u, model)
+        system = statement(model, drive)
+        motion = integrate(system, x[0], float(t[-1]))
+        reference = motion(t)
+        miss = end_miss(model, reference)
+        error = float(np.max(np.abs(x - reference)))
+        recipe = ("the true Filippov motion from the trajectory's x(0) driven by "
+                  + ("the peer's own input" if inputs is not None else "the input recovered from the trajectory")
+                  + ", DOP853 rtol = atol = 1e-12 with event location")
+        return Judgement(max(error, miss), miss, _switch_error(model, switch_times), EVENTS, None,
+                         time.perf_counter() - start, recipe)
+    from .replay import replay
+
+    result = replay(model, t, x, z, u)
+    return Judgement(max(result.error, result.end_miss), result.end_miss, _switch_error(model, switch_times),
+                     PROJECTION, result.uncertainty, time.perf_counter() - start, result.recipe)
+
+
+def end_miss(model: InclusionModel, x: np.ndarray) -> float:
+    """How far the states x (on [0, T]) miss the model's end and periodic conditions."""
+    gaps = [0.0]
+    ends = np.asarray(model.end_indices, dtype=int)
+    if ends.size:
+        gaps.append(float(np.max(np.abs(x[-1, ends] - np.asarray(model.end_values, float)))))
+    periodic = np.asarray(getattr(model, "periodic", ()), dtype=int)
+    if periodic.size:
+        gaps.append(float(np.max(np.abs(x[-1, periodic] - x[0, periodic]))))
+    return max(gaps)
+
+
+def _switch_error(model: InclusionModel, found: Sequence[float] | None) -> float | None:
+    known = np.asarray(getattr(type(model), "switch_times", ()) or (), float)
+    if known.size == 0 or found is None or len(found) == 0:
+        return None
+    found = np.asarray(found, float)
+    return float(np.max(np.min(np.abs(known[:, None] - found[None, :]), axis=1)))
+
+
+# ------------------------------------------------------------------ inputs from a trajectory
+
+
+def _interpolated(t: np.ndarray, values: np.ndarray) -> Callable[[float], np.ndarray]:
+    """u(s) piecewise linear through (t_k, values_k), held constant outside [t_0, t_end]."""
+    values = np.atleast_2d(np.asarray(values, float).T).T
+
+    def drive(s: float) -> np.ndarray:
+        return np.array([np.interp(s, t, column) for column in values.T])
+
+    return drive
+
+
+def _coulomb_force(t, x, z, u, model) -> Callable[[float], np.ndarray]:
+    """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·sign(v), ±U), sign(v) = 0 at rest
+    (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)."""
+    velocity = x[:, 1]
+    sign = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
+    force = np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)
+    return _interpolated(t, force[:, None])
+
+
+def _sliding_inputs(t, x, z, u, model) -> Callable[[float], np.ndarray]:
+    """v' = w with |w_i| ≤ 10: w = clip(z_v, ±10)."""
+    return _interpolated(t, np.clip(z[:, 2:4], -model.input_bound, model.input_bound))
+
+
+def _paper_control(t, x, z, u, model) -> Callable[[float], np.ndarray]:
+    """Example 7.3's control u, a column of the trajectory itself."""
+    if u is None or np.size(u) == 0:
+        raise ValueError("paper-7.3: a trajectory without its control u cannot be replayed")
+    return _interpolated(t, np.asarray(u, float))
+
+
+INPUTS: dict[str, Callable] = {
+    "coulomb-rest-to-rest": _coulomb_force,
+    "sliding-mode-terminal": _sliding_inputs,
+    "paper-7.3": _paper_control,
+}
+"""Models judged by an events replay, and how each recovers its input from a trajectory."""
+
+
+# ------------------------------------------------------------------ recipes for the report
+
+
+@lru_cache(maxsize=None)
+def cross_check(name: str) -> str:
+    """How `name`'s reference was made, with its independent cross-check where there is one."""
+    from ..descent import load_model
+
+    model = load_model(name)
+    which = kind(model)
+    if which == EVENTS:
+        return (f"{EVENTS}: per row, the true Filippov motion from the row's x(0) driven by its input "
+                f"(recovered from the row's z, or the peer's own), DOP853 rtol = atol = 1e-12 with event location; "
+                f"error includes how far that motion misses the end conditions")
+    if which == PROJECTION:
+        return (f"{PROJECTION}: per row, the true motion x' = P_F(x)(z(t)) from the row's x(0) (Filippov's "
+                f"theorem), see the row's reference uncertainty; error includes how far it misses the end conditions")
+    from .filippov import reference
+
+    start = time.perf_counter()
+    try:
+        motion = reference(model)
+    except Exception as exc:  # an integrator failure is reported, not fatal
+        return f"{EXACT}: closed form (cross-check failed: {type(exc).__name__}: {exc})"
+    if motion is None:
+        return f"{EXACT}: closed form (no independent statement for the event integrator)"
+    t = np.linspace(0.0, model.T, 2001)
+    gap = float(np.max(np.abs(motion(t) - model.exact_solution(t))))
+    return (f"{EXACT}: closed form; DOP853 with event location (rtol = atol = 1e-12) agrees to {gap:.1e} "
+            f"on 2001 times ({time.perf_counter() - start:.2f} s)")
