@@ -39,7 +39,9 @@ def test_error_against_the_exact_solution_is_first_order(results, name):
         assert errors[2] / errors[1] == pytest.approx(0.1, rel=0.1)
 
 
-@pytest.mark.parametrize("name", list(FRICTION_MODELS))
+# stick-slip-oscillator (T = 100) is not in the solved SUITE, so `results` has no run of it:
+# adding it would be a benchmark decision (its solves at N = 10001 over 25 arcs are a different cost)
+@pytest.mark.parametrize("name", [n for n in FRICTION_MODELS if n in SUITE])
 def test_selections_match_the_exact_ones_away_from_switches(results, name):
     result = results[name, 1001]
     model = FRICTION_MODELS[name]()

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import itertools
 import sys
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -225,8 +226,6 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
               atol: float = 1e-12) -> FilippovTrajectory:
     """The Filippov solution of `system` from x(0) = x0 over [0, T]: DOP853 (dense output)
     between terminal events, the mode re-chosen by :func:`choose_mode` at every event."""
-    import time
-
     clock = time.perf_counter()
     x = np.array(x0, dtype=float)
     if not np.all(np.isfinite(x)):
