@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from qdframe.cli import main as qdframe_main
+from qdframe.descent import make_direction
 from qdframe.benchmarks import peers as bench_peers
 from qdframe.benchmarks import sweep as bench_sweep
 from qdframe.benchmarks.report import ratios, shifted_geometric_mean, summarize, time_to
@@ -266,3 +267,11 @@ def test_the_quick_suite_runs_and_judges_every_row(tmp_path):
     # gauss-newton reaches 1e-6 on the exact models; its time is in the table
     reached = time_to(rows, 1e-6)
     assert ("block-stop-stick", "gauss-newton / armijo (accuracy=)") in reached
+
+
+def test_the_time_limit_wrapper_keeps_the_directions_settings():
+    """A bench row solves as solve() would: the wrapped direction keeps its continuation ladder."""
+    inner = make_direction("gauss-newton")
+    wrapped = bench_sweep._Deadline(inner, 60.0)
+    for setting in ("name", "default_line_search", "default_continuation", "coarsest_nodes", "ladder_steps"):
+        assert getattr(wrapped, setting) == getattr(inner, setting), setting

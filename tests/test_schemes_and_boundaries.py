@@ -12,6 +12,7 @@ from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.sets import Interval, SetModel, Sgn
+from qdframe.registry import lookup
 
 SCHEMES = ("trapezoid", "implicit-euler", "radau-iia")
 
@@ -109,3 +110,22 @@ def test_band_and_exact_agree_off_the_switch():
     assert exact.selections is not None and exact.selections.shape == (101, 1)
     band = qdframe.solve("slide-on-line", nodes=101, max_iter=0, signs="band")
     assert band.selections is None and band.terms["sigma"] == 0.0
+
+
+@pytest.mark.parametrize("name", ["trapezoid", "implicit-euler", "radau-iia"])
+def test_the_schemes_velocity_is_the_derivative_its_rule_integrates(name):
+    """Scheme.velocity is x' of the rule: integrating it over a mesh interval gives the rule's
+    own increment x_{k+1} − x_k, for every scheme, on a nonuniform mesh."""
+    from qdframe.grid import Grid
+
+    scheme = lookup("schemes", name).obj()
+    grid = Grid.from_mesh(np.array([0.0, 0.1, 0.35, 0.5, 1.0]), scheme)
+    z = np.sin(3 * grid.t)[:, None] + np.cos(7 * grid.t)[:, None] ** 2
+    increments = grid.cumulative(z)  # Z_p, the rule's ∫_0^{t_p} z
+    mesh = np.arange(0, grid.t.size, scheme.stages)
+    for k in range(mesh.size - 1):
+        a, b = grid.t[mesh[k]], grid.t[mesh[k + 1]]
+        s, w = np.polynomial.legendre.leggauss(4)
+        times = 0.5 * (b - a) * s + 0.5 * (a + b)
+        integral = 0.5 * (b - a) * w @ scheme.velocity(grid.t, mesh, z, times)[:, 0]
+        assert integral == pytest.approx(increments[mesh[k + 1], 0] - increments[mesh[k], 0], abs=1e-13)

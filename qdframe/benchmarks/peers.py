@@ -124,10 +124,11 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
 
 
 def _stagewise(controls: np.ndarray, T: float) -> Callable[[float], np.ndarray]:
-    """nosnoc's control: constant on each of its equal control stages."""
+    """nosnoc's control: constant on each of its equal control stages (`breaks`: their ends)."""
     def drive(s: float) -> np.ndarray:
         return controls[min(int(s / T * controls.shape[0]), controls.shape[0] - 1)]
 
+    drive.breaks = tuple(T * np.arange(1, controls.shape[0]) / controls.shape[0])
     return drive
 
 

@@ -72,9 +72,13 @@ def judge(
     u: np.ndarray | None = None,
     switch_times: Sequence[float] | None = None,
     inputs: Callable[[float], np.ndarray] | None = None,
+    velocity: Callable[[np.ndarray], Callable[[float], np.ndarray]] | None = None,
 ) -> Judgement:
-    """Judge the trajectory (t, x, z, u) of `model`; `inputs` is the peer's own input u(t)
-    for an events replay (else it is recovered from the trajectory, :data:`INPUTS`)."""
+    """Judge the trajectory (t, x, z, u) of `model`. For an events replay, `inputs` is the
+    peer's own input u(t); else the input is recovered at the points t from the trajectory
+    (:data:`INPUTS`) and continued between them by `velocity` (values at t ↦ a function of
+    time: the scheme's own rule for x', :meth:`~qdframe.schemes.base.Scheme.velocity`;
+    default piecewise linear)."""
     start = time.perf_counter()
     t, x, z = np.asarray(t, float), np.asarray(x, float), np.asarray(z, float)
     which = kind(model)
@@ -87,7 +91,8 @@ def judge(
     if which == EVENTS:
         from .filippov import integrate, statement
 
-        drive = inputs if inputs is not None else INPUTS[model.name](t, x, z, u, model)
+        between = velocity or (lambda values: _interpolated(t, values))
+        drive = inputs if inputs is not None else between(INPUTS[model.name](x, z, u, model))
         system = statement(model, drive)
         motion = integrate(system, x[0], float(t[-1]))
         reference = motion(t)
@@ -138,25 +143,24 @@ def _interpolated(t: np.ndarray, values: np.ndarray) -> Callable[[float], np.nda
     return drive
 
 
-def _coulomb_force(t, x, z, u, model) -> Callable[[float], np.ndarray]:
+def _coulomb_force(x, z, u, model) -> np.ndarray:
     """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·sign(v), ±U), sign(v) = 0 at rest
     (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)."""
     velocity = x[:, 1]
     sign = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
-    force = np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)
-    return _interpolated(t, force[:, None])
+    return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
 
 
-def _sliding_inputs(t, x, z, u, model) -> Callable[[float], np.ndarray]:
+def _sliding_inputs(x, z, u, model) -> np.ndarray:
     """v' = w with |w_i| ≤ 10: w = clip(z_v, ±10)."""
-    return _interpolated(t, np.clip(z[:, 2:4], -model.input_bound, model.input_bound))
+    return np.clip(z[:, 2:4], -model.input_bound, model.input_bound)
 
 
-def _paper_control(t, x, z, u, model) -> Callable[[float], np.ndarray]:
+def _paper_control(x, z, u, model) -> np.ndarray:
     """Example 7.3's control u, a column of the trajectory itself."""
     if u is None or np.size(u) == 0:
         raise ValueError("paper-7.3: a trajectory without its control u cannot be replayed")
-    return _interpolated(t, np.asarray(u, float))
+    return np.asarray(u, float)
 
 
 INPUTS: dict[str, Callable] = {
@@ -164,7 +168,7 @@ INPUTS: dict[str, Callable] = {
     "sliding-mode-terminal": _sliding_inputs,
     "paper-7.3": _paper_control,
 }
-"""Models judged by an events replay, and how each recovers its input from a trajectory."""
+"""Models judged by an events replay, and how each recovers its input at a trajectory's points."""
 
 
 # ------------------------------------------------------------------ recipes for the report

@@ -27,6 +27,7 @@ import os
 import platform
 import sys
 import time
+import typing
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -333,10 +334,12 @@ class _Deadline(DirectionSolver):
     def __init__(self, inner: DirectionSolver, seconds: float) -> None:
         self.inner = inner
         self.seconds = seconds
-        self.name = inner.name  # type: ignore[misc]
+        # the inner solver's class settings (name, line search, continuation ladder: coarsest_nodes,
+        # ladder_steps, …), which solve reads from the direction it is given
+        for setting in typing.get_type_hints(DirectionSolver, include_extras=False):
+            if hasattr(inner, setting):
+                setattr(self, setting, getattr(inner, setting))
         self.label = getattr(inner, "label", inner.name)
-        self.default_line_search = inner.default_line_search  # type: ignore[misc]
-        self.default_continuation = inner.default_continuation  # type: ignore[misc]
         self.expired = False
         self._deadline = math.inf
 
@@ -414,7 +417,33 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
         for name in history:
             history[name].append(getattr(record, name))
     _residual_error(row)
-    _judge(row, model, result.t, result.x, result.z, result.u, switch_times=result.switch_times)
+    _judge(row, model, result.t, result.x, result.z, result.u, switch_times=result.switch_times,
+           velocity=scheme_velocity(result))
+
+
+def scheme_velocity(result) -> Callable[[np.ndarray], Callable[[float], np.ndarray]]:
+    """values at a result's points ↦ the function of time its scheme's rule makes of them
+    (:meth:`~qdframe.schemes.base.Scheme.velocity`), for replaying its input; it may jump at
+    the mesh points, which it names as `breaks` (the integrator restarts there)."""
+    scheme = lookup("schemes", result.options["scheme"]).obj()
+    t = np.asarray(result.t, float)
+    mesh = np.arange(0, t.size, scheme.stages)
+
+    def between(values: np.ndarray) -> Callable[[float], np.ndarray]:
+        return Drive(lambda s: scheme.velocity(t, mesh, values, s)[0], tuple(t[mesh[1:-1]]))
+
+    return between
+
+
+@dataclass(frozen=True)
+class Drive:
+    """An input u(t) for a replay and the times where it may jump."""
+
+    value: Callable[[float], np.ndarray]
+    breaks: tuple[float, ...] = ()
+
+    def __call__(self, s: float) -> np.ndarray:
+        return self.value(s)
 
 
 def _run_peer(case: Case, row: dict, history: dict) -> None:
@@ -451,10 +480,10 @@ def _residual_error(row: dict) -> None:
     row["residual_error"] = float(max(parts))
 
 
-def _judge(row: dict, model: InclusionModel, t, x, z, u, switch_times=None, inputs=None) -> None:
+def _judge(row: dict, model: InclusionModel, t, x, z, u, switch_times=None, inputs=None, velocity=None) -> None:
     """The row's error against the model's reference (:func:`~.references.judge`)."""
     try:
-        verdict = judge(model, t, x, z, u, switch_times=switch_times, inputs=inputs)
+        verdict = judge(model, t, x, z, u, switch_times=switch_times, inputs=inputs, velocity=velocity)
     except Exception as exc:  # a reference that cannot be made leaves the error unknown, and says why
         row["message"] = "; ".join(filter(None, [row["message"], f"no reference error: {type(exc).__name__}: {exc}"]))
         return

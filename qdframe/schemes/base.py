@@ -49,11 +49,31 @@ class Scheme(ABC):
     description: ClassVar[str] = ""
     order: ClassVar[int] = 1  # classical order at the mesh points for smooth solutions
     stages: ClassVar[int] = 1  # points per mesh interval: `nodes` = stages·K + 1 for K intervals
+    # the points of a mesh interval whose z the rule integrates there (0: the interval's first
+    # mesh point, `stages`: its last): x' on the interval is the polynomial through them
+    velocity_points: ClassVar[tuple[int, ...]] = (0, 1)
 
     @abstractmethod
     def layout(self, mesh: np.ndarray) -> Layout:
         """The layout on the mesh times `mesh` (K + 1 increasing values from 0 to T), with
         stages·K + 1 points in all (the number of unknown x, z rows)."""
+
+    def velocity(self, t: np.ndarray, mesh: np.ndarray, values: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """The rule's own x'(t) at `times` from `values` (z, or anything sampled like it) at the
+        points t (mesh: the indices of the mesh points): on each mesh interval the polynomial
+        through the values at its `velocity_points` — constant for implicit Euler, linear for
+        the trapezoid rule and for Radau IIA (through its two stages)."""
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        interval = np.clip(np.searchsorted(t[mesh], times, side="right") - 1, 0, mesh.size - 2)
+        points = mesh[interval][:, None] + np.asarray(self.velocity_points)[None, :]  # (K, q)
+        out = np.zeros((times.size,) + values.shape[1:])
+        for i in range(points.shape[1]):  # Lagrange basis through the q points
+            basis = np.ones(times.size)
+            for j in range(points.shape[1]):
+                if j != i:
+                    basis *= (times - t[points[:, j]]) / (t[points[:, i]] - t[points[:, j]])
+            out += basis.reshape((-1,) + (1,) * (values.ndim - 1)) * values[points[:, i]]
+        return out
 
     def check_nodes(self, nodes: int) -> None:
         """Raise InputError when `nodes` does not fit the scheme (stages·K + 1, K ≥ 1)."""

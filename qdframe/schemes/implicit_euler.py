@@ -16,6 +16,7 @@ class ImplicitEuler(Scheme):
     name = "implicit-euler"
     description = "implicit Euler, order 1, the complementarity systems' standard"
     order = 1
+    velocity_points = (1,)  # x' on (t_k, t_{k+1}] is z_{k+1}
 
     def layout(self, mesh: np.ndarray) -> Layout:
         return one_step_layout(mesh, lower=0.0, diagonal=1.0, ends=(0.5, 1.0))

@@ -29,6 +29,7 @@ class RadauIIA(Scheme):
     description = "Radau IIA collocation, 2 stages, order 3 (stiffly accurate)"
     order = 3
     stages = 2
+    velocity_points = (1, 2)  # x' is linear through the two stages
 
     def check_nodes(self, nodes: int) -> None:
         if nodes % 2 == 0:
