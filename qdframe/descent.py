@@ -314,8 +314,8 @@ def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolv
     result.switch_times = (switches.switch_times(functional, adaptive.iterate(functional, result))
                            if result.status == "solved" else np.zeros(0))
     if accuracy is not None:
-        if result.status == "solved" and found.value is not None and found.value > accuracy:
-            result.status = "stationary"
+        if result.status == "solved" and (found.value is None or found.value > accuracy):
+            result.status = "stationary"  # under accuracy, solved promises an estimate ≤ accuracy
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:
         result.message = f"{result.message}; {note}" if result.message else note

@@ -38,6 +38,10 @@ NOT_RUN = {
     # machine (exit 0, 2026-11-23); test_bench_directions_at_a_small_size runs its code path
     "qdframe bench directions --nodes 10000 --repeat 3 --directions native,osqp,clarabel,cvxpy,qpsolvers:daqp,"
     "qpsolvers:proxqp": "a 5-minute measurement",
+    # the standard work-precision suite: 269 runs up to N = 100001, about an hour on the 2-core
+    # machine with two dask workers; the quick suite runs the same code (and runs here and in
+    # tests/test_bench_run.py)
+    "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
 }
 """Commands parsed but not run, and why."""
 

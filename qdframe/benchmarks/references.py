@@ -47,6 +47,7 @@ class Judgement:
     """A trajectory judged against its reference."""
 
     error: float | None
+    distance: float | None  # max |x − x_ref| alone (for a replay, error also counts the end miss)
     end_error: float | None
     switch_error: float | None
     kind: str
@@ -86,7 +87,7 @@ def judge(
         exact = np.asarray(model.exact_solution(t), float)
         error = float(np.max(np.abs(x - exact)))
         end = float(np.max(np.abs(x[-1] - exact[-1])))
-        return Judgement(error, end, _switch_error(model, switch_times), EXACT, None,
+        return Judgement(error, error, end, _switch_error(model, switch_times), EXACT, None,
                          time.perf_counter() - start, "the model's closed-form solution at the trajectory's own times")
     if which == EVENTS:
         from .filippov import integrate, statement
@@ -101,12 +102,12 @@ def judge(
         recipe = ("the true Filippov motion from the trajectory's x(0) driven by "
                   + ("the peer's own input" if inputs is not None else "the input recovered from the trajectory")
                   + ", DOP853 rtol = atol = 1e-12 with event location")
-        return Judgement(max(error, miss), miss, _switch_error(model, switch_times), EVENTS, None,
+        return Judgement(max(error, miss), error, miss, _switch_error(model, switch_times), EVENTS, None,
                          time.perf_counter() - start, recipe)
     from .replay import replay
 
     result = replay(model, t, x, z, u)
-    return Judgement(max(result.error, result.end_miss), result.end_miss, _switch_error(model, switch_times),
+    return Judgement(max(result.error, result.end_miss), result.error, result.end_miss, _switch_error(model, switch_times),
                      PROJECTION, result.uncertainty, time.perf_counter() - start, result.recipe)
 
 

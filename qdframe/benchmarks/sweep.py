@@ -102,7 +102,7 @@ SUITES = {
                    (11, 41, 161), max_iter=100, time_limit_s=30.0, accuracy=(1e-3, 1e-6), other_grids=(11, 41),
                    peer_grids=(11, 41), bvp_tols=(1e-3, 1e-6)),
     "standard": Suite("standard", STANDARD_MODELS, 2, (11, 101, 1001, 10001, 100001), max_iter=500,
-                      time_limit_s=60.0, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101),
+                      time_limit_s=30.0, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101),
                       peer_grids=(11, 51, 101, 201), bvp_tols=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8)),
     "full": Suite("full", STANDARD_MODELS, None, (11, 101, 1001, 10001, 100001), max_iter=500, time_limit_s=600.0,
                   every_line_search=True, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101, 1001),
