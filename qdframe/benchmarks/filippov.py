@@ -41,7 +41,7 @@ Input = Callable[[float], np.ndarray]
 
 SURFACE_TOL = 1e-11  # |c_i| at most this: switch i is at its surface (events locate c to ~1e-16)
 MARGIN_TOL = 1e-9  # a mode is consistent when every margin (σ units) is ≥ −MARGIN_TOL
-MAX_EVENTS = 100_000
+MAX_EVENTS = 100_000  # mode changes and events, beyond the declared breaks
 MAX_STALLS = 20  # consecutive events without progress in t before giving up (Zeno, chattering)
 
 
@@ -248,7 +248,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
             pieces.append(run.sol)
         stalls = stalls + 1 if end <= t + 1e-14 * max(1.0, abs(t)) else 0
         events += 1
-        if stalls > MAX_STALLS or events > MAX_EVENTS:
+        if stalls > MAX_STALLS or events > MAX_EVENTS + len(stops):
             raise FilippovError(f"{system.name}: no progress at t = {t:.17g} ({events} events): Zeno or chattering")
         t, x = end, run.y[:, -1].copy()
         if run.status == 1:

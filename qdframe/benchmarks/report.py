@@ -182,10 +182,12 @@ def plot_work_precision(rows: Sequence[dict], path: str | Path, models: Sequence
     """Wall time against reference error, log-log, one panel per model, one line per solver
     (coarse to fine), a cross where a run failed or hit the time limit, a hollow marker where
     it did not report success; dotted verticals at the `targets`."""
+    every = sorted({solver_label(r) for r in rows})  # one style per solver in every figure
     rows = [r for r in rows if models is None or r["model"] in models]
     plt, fig, axes, models, solvers, colors = _panels(rows)
     for ax, model in zip(axes.flat, models):
-        for i, solver in enumerate(solvers):
+        for solver in solvers:
+            i = every.index(solver)
             line = sorted((r for r in rows if r["model"] == model and solver_label(r) == solver
                            and r.get("error") is not None and r.get("wall_time_s")), key=_knob_order)
             if not line:
@@ -206,11 +208,13 @@ def plot_work_precision(rows: Sequence[dict], path: str | Path, models: Sequence
         ax.grid(True, which="major", alpha=0.3)
     for ax in list(axes.flat)[len(models):]:
         ax.set_visible(False)
-    handles = [plt.Line2D([], [], label=s, color=_style(i, colors)["color"], ls=_style(i, colors)["ls"],
-                          marker=_style(i, colors)["marker"]) for i, s in enumerate(solvers)]
+    handles = [plt.Line2D([], [], label=s, color=_style(every.index(s), colors)["color"],
+                          ls=_style(every.index(s), colors)["ls"], marker=_style(every.index(s), colors)["marker"])
+               for s in solvers]
     handles += [plt.Line2D([], [], color="gray", marker="o", mfc="none", ls="", label="not solved"),
                 plt.Line2D([], [], color="gray", marker="x", ls="", label="failed / time limit")]
-    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=min(4, len(handles)))
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center",
+               ncols=min(4 if len(models) > 1 else 2, len(handles)))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -223,7 +227,8 @@ def _panels(rows: Sequence[dict]):
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     columns = min(3, max(1, len(models)))
     lines = math.ceil(len(models) / columns) if models else 1
-    fig, axes = plt.subplots(lines, columns, figsize=(4.6 * columns, 3.6 * lines), squeeze=False, constrained_layout=True)
+    size = (4.6 * columns, 3.6 * lines) if columns > 1 else (6.4, 4.8)
+    fig, axes = plt.subplots(lines, columns, figsize=size, squeeze=False, constrained_layout=True)
     return plt, fig, axes, models, solvers, colors
 
 
