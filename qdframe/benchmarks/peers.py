@@ -1,4 +1,4 @@
-"""Peers: other tools run on the same problems and judged by qdframe's own residual checks.
+"""Peers: nosnoc, run on the problems it can state (solve_bvp: :mod:`.bvp_peer`).
 
 nosnoc (PyPI ``nosnoc``, FESD + homotopy + IPOPT through CasADi) solves the two problems
 of :mod:`qdframe.benchmarks.models` as optimal-control problems: the bounded input is a
@@ -9,13 +9,15 @@ Discretization for a sweep's grid of N nodes: 10 control stages × ⌈(N − 1)/
 elements each (N − 1 elements for N = 11, 51, 101, …), Radau IIA with n_s = 2 stage
 points, FESD step equilibration as nosnoc's defaults, complementarity tolerance 1e-9.
 
-How it is judged. nosnoc's trajectory is, on each finite element [t_e, t_e + h_e], the
+How it is read. nosnoc's trajectory is, on each finite element [t_e, t_e + h_e], the
 collocation polynomial of degree n_s through the element's start value and its stage
 values at τ = (0, c_1, …, c_ns) — by the collocation equations its derivative at the stage
-points is nosnoc's own velocity f(x, u, θ). At each of qdframe's N uniform nodes t_k we take
-x(t_k) from that polynomial and z(t_k) = its slope; at an element boundary, the mean of the
-slopes of the two adjacent elements (see :func:`reconstruct`), build ξ = (x, z) with ``Functional.pack`` and report
-``Functional.terms``/``Functional.residuals`` — exactly the checks a qdframe run gets.
+points is nosnoc's own velocity f(x, u, θ). At N uniform times t_k we take x(t_k) from
+that polynomial and z(t_k) = its slope; at an element boundary, the mean of the slopes of
+the two adjacent elements (see :func:`reconstruct`). Its control, constant on each stage,
+is returned as `inputs` (with the stage ends as `breaks`): the sweep judges the run by the
+true motion that control drives (:mod:`.references`), and shows qdframe's residual checks
+of ξ = (x, z) beside it.
 """
 
 from __future__ import annotations
