@@ -66,14 +66,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from importlib import metadata
 
 import numpy as np
 from scipy.integrate import solve_bvp
 
 from ..errors import InputError
 from ..models import friction
-from .peers import PeerRun
+from .peers import PeerRun, package_version
 
 STICK_SLIP_NAME = "stick-slip-oscillator"
 STICK_SLIP_FRICTION = 0.1  # p' = v, v' ∈ −p − 0.1·Sgn(v)
@@ -231,7 +230,7 @@ def solve_statement(name: str, T: float, x0: Sequence[float], tol: float, epsilo
     sol = solve_bvp(fun, bc, mesh, np.asarray(y0, dtype=float).T, tol=tol, max_nodes=max_nodes)
     wall = time.perf_counter() - start
     rms = float(np.max(sol.rms_residuals)) if sol.rms_residuals is not None and sol.rms_residuals.size else float("nan")
-    message = (f"scipy {_version('scipy')} solve_bvp: {sol.message} (status {sol.status}) after {sol.niter} "
+    message = (f"scipy {package_version('scipy')} solve_bvp: {sol.message} (status {sol.status}) after {sol.niter} "
                f"iterations; {sol.x.size} mesh nodes, max rms residual {rms:.1e}; sat(s/ε) with ε = {eps:.1e}, tol {tol:.1e}")
     return PeerRun("solved" if sol.success else "failed", message, int(sol.niter), wall, 0.0,
                    x=sol.y.T, z=sol.yp.T, t=sol.x)
@@ -256,9 +255,3 @@ def run_solve_bvp(model, tol: float, epsilon: float | None = None, max_nodes: in
     run.wall_time_s = time.perf_counter() - start
     return run
 
-
-def _version(distribution: str) -> str:
-    try:
-        return metadata.version(distribution)
-    except metadata.PackageNotFoundError:
-        return "?"

@@ -112,7 +112,7 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
     steps = sum(1 for i in results["nlp_iter"] if i is not None)
     complementarity = float(solver.problem.comp_res(results["w_sol"], solver.p_val).full()[0][0])
     message = (
-        f"nosnoc {_version('nosnoc')}, CasADi {_version('casadi')}"
+        f"nosnoc {package_version('nosnoc')}, CasADi {package_version('casadi')}"
         + f": {'success' if success else 'IPOPT did not converge'} after {steps} homotopy steps "
         f"({ipopt_iterations} IPOPT iterations), complementarity {complementarity:.1e}, own cost "
         f"{float(results['cost_val']):.4g}; {NOSNOC_STAGES} stages × {opts.N_finite_elements} finite elements, "
@@ -134,7 +134,8 @@ def _stagewise(controls: np.ndarray, T: float) -> Callable[[float], np.ndarray]:
     return drive
 
 
-def _version(distribution: str) -> str:
+def package_version(distribution: str) -> str:
+    """The installed version of `distribution`, or "?"."""
     try:
         return metadata.version(distribution)
     except metadata.PackageNotFoundError:
