@@ -32,7 +32,7 @@ import itertools
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.integrate import OdeSolution, solve_ivp
@@ -361,8 +361,7 @@ def _coulomb_rest_to_rest(model, inputs: Input | None) -> FilippovSystem | None:
         return None
     u = _input(inputs, 1)
     return FilippovSystem(lambda t, x: np.array([x[1], u(t)[0]]),
-                          (_coordinate_switch(1, 2, _constant(model.friction), "F·Sgn(v)"),), model.name,
-                          tuple(getattr(inputs, "breaks", ())))
+                          (_coordinate_switch(1, 2, _constant(model.friction), "F·Sgn(v)"),), model.name)
 
 
 def _sliding_mode_terminal(model, inputs: Input | None) -> FilippovSystem | None:
@@ -375,8 +374,7 @@ def _sliding_mode_terminal(model, inputs: Input | None) -> FilippovSystem | None
                     _constant(1.0), "Sgn(c1)")
     c2 = SignSwitch(lambda x: x[1] + b * x[0] ** 3, lambda x: np.array([3 * b * x[0] ** 2, 1.0, 0.0, 0.0]),
                     _unit(1, 4), _constant(1.0), "Sgn(c2)")
-    return FilippovSystem(lambda t, x: np.concatenate([x[2:4], w(t)]), (c1, c2), model.name,
-                          tuple(getattr(inputs, "breaks", ())))
+    return FilippovSystem(lambda t, x: np.concatenate([x[2:4], w(t)]), (c1, c2), model.name)
 
 
 def _paper_73(model, inputs: Input | None) -> FilippovSystem | None:
@@ -393,7 +391,7 @@ def _paper_73(model, inputs: Input | None) -> FilippovSystem | None:
     return FilippovSystem(drift, (_coordinate_switch(3, 6, lambda _t, x: gain * float(np.sum(np.abs(x))), "1.05|x|Sgn(x4)"),
                                   _coordinate_switch(4, 6, _constant(friction), "0.3 Sgn(x5)"),
                                   _coordinate_switch(5, 6, _constant(friction), "0.3 Sgn(x6)")),
-                          model.name, tuple(getattr(inputs, "breaks", ())))
+                          model.name)
 
 
 STATEMENTS: dict[str, Callable] = {
@@ -430,7 +428,10 @@ def statement(model, inputs: Input | None = None) -> FilippovSystem | None:
     attribute (times of its jumps) passes them to the system.
     """
     build = STATEMENTS.get(getattr(model, "name", ""))
-    return None if build is None else build(model, inputs)
+    system = None if build is None else build(model, inputs)
+    if system is None or not getattr(inputs, "breaks", ()):
+        return system
+    return replace(system, breaks=tuple(inputs.breaks))
 
 
 def start(model) -> np.ndarray | None:
