@@ -116,6 +116,16 @@ def build_parser() -> argparse.ArgumentParser:
                                 help="models (default: every one with an exact solution)")
     bench_accuracy.add_argument("--targets", type=vector, default=(1e-4, 1e-6), metavar="E,E,..",
                                 help="true errors to reach (default 1e-4,1e-6)")
+    bench_scale = benches.add_parser(
+        "scale", help="seconds per iteration against N, against the floor (one KKT factorization + one model "
+        "evaluation), the fitted exponent and peak memory")
+    bench_scale.add_argument("--paths", type=names, metavar="NAME,NAME,..",
+                             help="directions, each with its own line search (default gauss-newton,native)")
+    bench_scale.add_argument("--models", type=names, metavar="NAME,NAME,..",
+                             help="models (default paper-7.1,paper-7.2,paper-7.3)")
+    bench_scale.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 1001,10001,100001)")
+    bench_scale.add_argument("--iterations", type=integer(1), default=3, help="iterations timed per cell (default 3)")
+    bench_scale.add_argument("--json", metavar="FILE", help="write the cells and exponents as JSON")
     add_run_parser(benches)
 
     add_check_parser(commands)
@@ -148,7 +158,7 @@ def _main(argv: list[str], debug: bool) -> int:
             return _simulate(args)
         if args.command == "bench":
             commands = {"run": main_run, "hard": lambda _args: _bench_hard(), "directions": _bench_directions,
-                        "friction": _bench_friction, "accuracy": _bench_accuracy}
+                        "friction": _bench_friction, "accuracy": _bench_accuracy, "scale": _bench_scale}
             return commands[args.bench_command](args)
         if args.command == "check-model":
             return main_check(args)
@@ -303,6 +313,19 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
 
     print(accuracy.table(accuracy.run(args.models, args.targets, progress=True)))
     return 0  # a measurement: the table says which targets are not met
+
+
+def _bench_scale(args: argparse.Namespace) -> int:
+    from .benchmarks import scale
+
+    if args.json:
+        _writable("--json", args.json)
+    cells = scale.run(args.paths or scale.PATHS, args.models or scale.MODELS, args.nodes or scale.NODES,
+                      args.iterations, progress=lambda text: print(text, file=sys.stderr, flush=True))
+    if args.json:
+        Path(args.json).write_text(json.dumps(scale.to_json(cells), indent=1) + "\n")
+    print(scale.table(cells))
+    return 1 if any(cell.error for cell in cells) else 0
 
 
 def _bench_hard() -> int:

@@ -1,0 +1,46 @@
+"""`qdframe bench scale`: the harness measures what it says (values, not speed)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from qdframe.benchmarks import scale
+from qdframe.cli import main
+
+
+def cell(path: str, model: str, nodes: int, seconds: float) -> scale.Cell:
+    return scale.Cell(path, model, nodes, 3, "max_iter", seconds, seconds / 2, seconds / 4, seconds / 4, 1.0, 1.0)
+
+
+def test_exponent_is_the_slope_of_the_logs() -> None:
+    cells = [cell("p", "a", n, 2e-6 * n**1.5) for n in (1001, 10001, 100001)] + [cell("p", "b", 1001, 1.0)]
+    k = scale.exponents(cells)
+    assert k[("p", "a")] == pytest.approx(1.5, abs=1e-12)
+    assert np.isnan(k[("p", "b")])  # one grid: no slope
+    assert cells[0].ratio == pytest.approx(2.0)
+
+
+def test_a_cell_measures_the_descent_the_floor_and_the_arrays() -> None:
+    measured = scale.measure("gauss-newton", "paper-7.3", 201, iterations=2)
+    assert measured.iterations == 2 and measured.status == "max_iter"
+    assert 0 < measured.factor_s < measured.floor_s and measured.model_s > 0
+    assert measured.floor_s == pytest.approx(measured.factor_s + measured.model_s)
+    # ξ alone is 201 nodes × (x, z, u) of paper-7.3 in float64; J and the factors come on top
+    assert measured.must_exist_mb > 201 * 5 * 8 / 2**20
+    assert measured.per_iteration_s > 0 and measured.ratio == measured.per_iteration_s / measured.floor_s
+
+
+def test_cli_writes_the_table_and_json(tmp_path, capsys) -> None:
+    out = tmp_path / "scale.json"
+    code = main(["bench", "scale", "--paths", "native", "--models", "paper-7.1", "--nodes", "101,201",
+                 "--iterations", "1", "--json", str(out)])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "| native | paper-7.1 | 201 |" in printed
+    report = json.loads(out.read_text())
+    assert report["format"] == "qdframe-bench-scale/1"
+    assert [c["nodes"] for c in report["cells"]] == [101, 201]
+    assert np.isfinite(report["exponents"][0]["k"])
