@@ -80,6 +80,9 @@ def run(paths: Sequence[str] = PATHS, models: Sequence[str] = MODELS, nodes: Seq
                         cell = Cell(path, model, count, 0, "failed", *([float("nan")] * 6),
                                     error=f"{type(exc).__name__}: {exc}")
                 cells.append(cell)
+                if progress:
+                    progress(f"  {cell.per_iteration_s:.3g} s/iter, floor {cell.floor_s:.3g} s, "
+                             f"peak {cell.peak_mb:.0f} MB {cell.status}{' ' + cell.error if cell.error else ''}")
     return cells
 
 
