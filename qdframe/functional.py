@@ -594,13 +594,13 @@ class Functional:
                 count = psi.shape[1]
                 value = np.einsum("nk,nmk->nm", zb, psi)
                 for f, _ in maxes:
-                    value -= np.einsum("nqk,nmk->nmq", f, psi).max(axis=2)
+                    value -= _reduce_last(np.maximum, np.einsum("nqk,nmk->nmq", f, psi))
                 if block.min_groups:
                     y_rep = y if count == 1 else np.repeat(y, count, axis=0)
                     flat = psi.reshape(nodes * count, k)
                     for group in block.min_groups:
                         g, _ = group.pieces(y_rep, flat)
-                        value -= g.reshape(nodes, count, -1).min(axis=2)
+                        value -= _reduce_last(np.minimum, g.reshape(nodes, count, -1))
                 return value
 
             psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples)
@@ -625,6 +625,15 @@ class Functional:
                 f"model {self.model.name!r}: {label} returned a non-finite value at node {node}{when}",
                 label=label, node=node if per_node else None, nonfinite=True,
             )
+
+
+def _reduce_last(ufunc: np.ufunc, values: np.ndarray) -> np.ndarray:
+    """ufunc over the last (short) axis, one column at a time: `values.max(axis=-1)` for
+    np.maximum, several times faster for a few pieces and many nodes, same values (NaN too)."""
+    out = values[..., 0].copy()
+    for column in range(1, values.shape[-1]):
+        ufunc(out, values[..., column], out=out)
+    return out
 
 
 def _delta_active(values: np.ndarray, delta: float, spread: np.ndarray) -> np.ndarray:

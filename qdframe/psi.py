@@ -64,15 +64,14 @@ def best_sample(objective: Callable[[np.ndarray], np.ndarray], grid: np.ndarray,
     step = max(1, min(count, CHUNK // max(nodes, 1)))
     best = np.zeros(nodes, dtype=int)
     top = np.full(nodes, -np.inf)
-    rows = np.arange(nodes)
     for start in range(0, count, step):
         chunk = grid[start : start + step]
         values = objective(np.broadcast_to(chunk, (nodes, chunk.shape[0], k)))
-        index = np.argmax(values, axis=1)
-        value = values[rows, index]
-        better = (value > top) | (np.isnan(value) & ~np.isnan(top))
-        best = np.where(better, start + index, best)
-        top = np.where(better, value, top)
+        for column in range(chunk.shape[0]):  # a later sample wins only if strictly larger, or the first NaN
+            value = values[:, column]
+            better = (value > top) | (np.isnan(value) & ~np.isnan(top))
+            best[better] = start + column
+            top[better] = value[better]
     return best
 
 
