@@ -5,6 +5,11 @@ form. We sample S_k, keep the best sample per node, then refine by golden-sectio
 search along great circles through the current point, cycling over an orthonormal
 tangent basis — all vectorized over nodes. For k = 2 this is an exact 1-D search
 in the angle.
+
+The scan evaluates values only, a chunk of samples at a time (at most
+``CHUNK`` node-sample pairs per call of ℓ), so its memory is bounded by a few arrays
+of the nodes' size instead of growing with nodes × samples; it keeps the first best
+sample, as one ``argmax`` over all samples would.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from collections.abc import Callable
 import numpy as np
 
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+CHUNK = 1 << 16  # node-sample pairs per evaluation of ℓ in the scan
 
 
 def sphere_samples(k: int, count: int) -> np.ndarray:
@@ -40,8 +46,7 @@ def maximize_on_sphere(
     Returns ψ* of shape (nodes, k).
     """
     grid = sphere_samples(k, samples)
-    values = objective(np.broadcast_to(grid, (nodes, samples, k)))
-    psi = grid[np.argmax(values, axis=1)]
+    psi = grid[best_sample(objective, grid, nodes)]
     spacing = 2.0 * np.pi / samples if k == 2 else np.pi / samples ** (1.0 / (k - 1))
     sweeps = (1 if k == 2 else 4) if sweeps is None else sweeps
     for sweep in range(sweeps):
@@ -49,6 +54,25 @@ def maximize_on_sphere(
         for tangent in _tangent_basis(psi):
             psi = _golden_on_circle(objective, psi, tangent, width, iterations)
     return psi
+
+
+def best_sample(objective: Callable[[np.ndarray], np.ndarray], grid: np.ndarray, nodes: int) -> np.ndarray:
+    """Index (nodes,) of the first sample of `grid` (M, k) with the largest value at each
+    node — ``argmax`` over all M samples, NaN counting as the largest — evaluated
+    CHUNK node-sample pairs at a time."""
+    count, k = grid.shape
+    step = max(1, min(count, CHUNK // max(nodes, 1)))
+    best = np.zeros(nodes, dtype=int)
+    top = np.full(nodes, -np.inf)
+    for start in range(0, count, step):
+        chunk = grid[start : start + step]
+        values = objective(np.broadcast_to(chunk, (nodes, chunk.shape[0], k)))
+        for column in range(chunk.shape[0]):  # a later sample wins only if strictly larger, or the first NaN
+            value = values[:, column]
+            better = (value > top) | (np.isnan(value) & ~np.isnan(top))
+            best[better] = start + column
+            top[better] = value[better]
+    return best
 
 
 def _tangent_basis(psi: np.ndarray) -> list[np.ndarray]:

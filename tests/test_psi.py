@@ -1,0 +1,123 @@
+"""ψ* on S_k (qdframe.psi): the chunked, memoized search gives the same ψ*, the same
+δ-active pieces and the same solves as the original batched scan, kept here as the reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qdframe
+import qdframe.functional as functional_module
+from qdframe.functional import Functional, _delta_active
+from qdframe.grid import Grid
+from qdframe.models.paper_sets import Paper72Sets
+from qdframe.psi import _tangent_basis, _golden_on_circle, sphere_samples
+from qdframe.sets import Ball, SetModel, intersection
+
+S2_MODELS = ["paper-7.2", "paper-7.2-sets", "intersecting-balls"]  # intersecting-balls: qdframe-mechanics
+
+
+def reference_maximize(objective, nodes, k, samples=128, sweeps=None, iterations=40):
+    """The search before chunking: all samples of S_k in one call of ℓ, then golden refinement."""
+    grid = sphere_samples(k, samples)
+    values = objective(np.broadcast_to(grid, (nodes, samples, k)))
+    psi = grid[np.argmax(values, axis=1)]
+    spacing = 2.0 * np.pi / samples if k == 2 else np.pi / samples ** (1.0 / (k - 1))
+    sweeps = (1 if k == 2 else 4) if sweeps is None else sweeps
+    for sweep in range(sweeps):
+        width = 2.0 * spacing / (4.0**sweep)
+        for tangent in _tangent_basis(psi):
+            psi = _golden_on_circle(objective, psi, tangent, width, iterations)
+    return psi
+
+
+class Balls3(SetModel):
+    """x' ∈ B_1((0.5, 0, 0)) ∩ B_1((−0.5, 0, 0)) in R^3: an S_3 block (golden sweeps over two tangents)."""
+
+    name = "test-balls-3"
+    state_names = "x1 x2 x3"
+    default_T = 1.0
+    default_x0 = (0.0, 0.0, 0.0)
+    default_xT = {"x1": 0.1, "x2": 0.2, "x3": -0.1}
+
+    def sets(self, x1, x2, x3):
+        return {(x1, x2, x3): (0.1 * x2, 0, 0) + intersection(Ball((0.5, 0, 0), 1), Ball((-0.5, 0, 0), 1))}
+
+
+def _model(name):
+    unregistered = {"test-balls-3": Balls3, "paper-7.2-sets": Paper72Sets}
+    return unregistered[name]() if name in unregistered else qdframe.load_model(name)
+
+
+def _iterates(functional: Functional, count: int = 4) -> list[np.ndarray]:
+    """The start and random points around it: z inside, outside and on the sets."""
+    rng = np.random.default_rng(7)
+    start = functional.initial_point()
+    points = [start]
+    for scale in (0.3, 1.0, 3.0)[: count - 1]:
+        xi = start + scale * rng.standard_normal(start.shape)
+        points.append(functional.pack(*functional.split(xi)))
+    return points
+
+
+def _sphere_states(functional: Functional, xi: np.ndarray):
+    y, z = functional.arguments(xi), functional.split(xi)[1]
+    return [functional._state_sphere(block, y, z) for block in functional.blocks if block.size > 1]
+
+
+@pytest.mark.parametrize("name", S2_MODELS + ["test-balls-3"])
+def test_psi_and_active_pieces_match_the_reference_scan(name, monkeypatch):
+    model = _model(name)
+    functional = Functional(model, Grid(model.T, 301))
+    new = [_sphere_states(functional, xi) for xi in _iterates(functional)]
+    monkeypatch.setattr(functional_module, "maximize_on_sphere", reference_maximize)
+    reference = Functional(model, Grid(model.T, 301))
+    old = [_sphere_states(reference, xi) for xi in _iterates(reference)]
+    assert new and all(new)
+    for sides, ref_sides in zip(new, old):
+        for side, ref in zip(sides, ref_sides):
+            np.testing.assert_array_equal(side.psi, ref.psi)
+            np.testing.assert_array_equal(side.ell, ref.ell)
+            positive = side.h > 0
+            np.testing.assert_array_equal(positive, ref.h > 0)
+            for part, ref_part in zip(side.min_parts + side.max_parts, ref.min_parts + ref.max_parts):
+                for delta in (0.0, 1e-3, 1e-1):
+                    np.testing.assert_array_equal(_delta_active(part.values, delta, positive),
+                                                  _delta_active(ref_part.values, delta, positive))
+
+
+def test_memo_reuses_psi_only_for_the_same_inputs(monkeypatch):
+    model = qdframe.load_model("paper-7.2")
+    xi = _iterates(Functional(model, Grid(model.T, 101)), 2)[1]
+    moved = []
+    for column in (0, 2):  # x1 (y, the ellipse's axis) and z1, at one node, by one ulp or so
+        point = xi.copy()
+        point[50, column] += 1e-13
+        moved.append(point)
+    fresh = [_sphere_states(Functional(model, Grid(model.T, 101)), point)[0].psi for point in [xi, *moved]]
+    functional = Functional(model, Grid(model.T, 101))
+    calls = []
+    search = functional_module.maximize_on_sphere
+    monkeypatch.setattr(functional_module, "maximize_on_sphere", lambda *a, **k: calls.append(1) or search(*a, **k))
+    first = _sphere_states(functional, xi)[0]
+    first.psi[:] = 0.0  # a caller changing its ψ* does not change the memo's
+    again = _sphere_states(functional, xi.copy())[0]
+    assert len(calls) == 1
+    np.testing.assert_array_equal(again.psi, fresh[0])
+    for point, expected in zip(moved, fresh[1:]):
+        np.testing.assert_array_equal(_sphere_states(functional, point)[0].psi, expected)
+    assert len(calls) == 3
+    for point, expected in zip([xi, *moved], fresh):  # all still remembered
+        np.testing.assert_array_equal(_sphere_states(functional, point)[0].psi, expected)
+    assert len(calls) == 3
+
+
+@pytest.mark.parametrize("direction", ["gauss-newton", "native"])
+def test_solve_paper_72_matches_the_reference_scan(direction, monkeypatch):
+    options = dict(nodes=101, direction=direction, max_iter=6, estimate=False)
+    result = qdframe.solve("paper-7.2", **options)
+    monkeypatch.setattr(functional_module, "maximize_on_sphere", reference_maximize)
+    reference = qdframe.solve("paper-7.2", **options)
+    assert result.iterations == reference.iterations and result.status == reference.status
+    assert result.objective == reference.objective and result.I == reference.I
+    np.testing.assert_array_equal(result.x, reference.x)
