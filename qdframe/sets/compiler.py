@@ -46,8 +46,8 @@ import numpy as np
 import sympy as sp
 from sympy import Abs, Max, Min, sqrt  # re-exported for model authors
 
-from .errors import InputError
-from .model import Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
+from ..errors import InputError
+from ..model import Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
 
 __all__ = [
     "Abs",
