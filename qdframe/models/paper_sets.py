@@ -1,7 +1,7 @@
 """The paper's Examples 7.1–7.3 written with the modeling layer (:mod:`qdframe.sets`).
 
 They compile to the same pieces as the hand-written models in ``paper.py`` and
-``masses.py`` (tests/test_sets.py compares functional values, quasidifferentials and
+``masses.py`` (tests/sets/test_paper_examples.py compares functional values, quasidifferentials and
 solves); the hand-written ones stay registered as ``paper-7.1``, ``paper-7.2`` and
 ``paper-7.3``. These are not registered: import them, or see docs/authoring.md.
 """
