@@ -1,4 +1,5 @@
-"""Two problems that qdframe and an optimal-control peer (nosnoc) can both state.
+"""Filippov inclusions with a bounded input: two problems that qdframe and an optimal-control
+peer (nosnoc) can both state (the benchmarks' peer problems, `qdframe bench run --peers`).
 
 Each is a Filippov inclusion with a bounded input written as a set, so qdframe sees a
 plain boundary-value problem x' ∈ F(x) and nosnoc the equivalent optimal-control
