@@ -18,7 +18,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..model import InclusionModel, SetBlock, SignTerm, Surface, abs_sum
+from ..authoring.pieces import abs_sum
+from ..model import InclusionModel, SetBlock, SignTerm, Surface
 
 REACHING_START = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
 REACHING_TIME = 0.2

@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .argtypes import integer, positive_float
-from .errors import InputError, QdframeError
-from .model import InclusionModel
+from ..argtypes import integer, positive_float
+from ..errors import InputError, QdframeError
+from ..model import InclusionModel
 
 
 class ModelCheckError(QdframeError):
@@ -318,7 +318,7 @@ def add_check_parser(subparsers) -> argparse.ArgumentParser:
 
 def main_check(args: argparse.Namespace) -> int:
     """Run `qdframe check-model`: print the table; a failure raises ModelCheckError (exit 1)."""
-    from .descent import load_model
+    from ..descent import load_model
 
     if args.json:
         parent = Path(args.json).expanduser().resolve().parent
