@@ -7,7 +7,7 @@ A room θ warmed by a heater whose power lies anywhere in [0, 5], and its wall w
 import numpy as np
 
 import qdframe
-from qdframe.check import check_model
+from qdframe.authoring import check_model
 from qdframe.sets import Interval, SetModel
 
 

@@ -19,7 +19,7 @@ from .argtypes import (
     boundary_vector, continuation, finite_float, integer, key_value, names, node_counts, positive_float, vector,
 )
 from .benchmarks.cli import add_run_parser, main_run
-from .check import add_check_parser, main_check
+from .authoring.check import add_check_parser, main_check
 from .errors import InputError, QdframeError
 from .registry import GROUPS, KIND_LABEL, PluginWarning, available
 

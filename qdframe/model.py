@@ -28,6 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from .deprecation import moved
 from .errors import InputError
 
 # x (N, n) -> values (N, m, k) and Jacobians (N, m, k, n)
@@ -67,7 +68,7 @@ class SignTerm:
 
     `amplitude` is a constant a ≥ 0 or a tuple of groups, each `pieces(y)` returning
     values (N, m) and gradients (N, m, n + m) (|y_i| is the group {y_i, −y_i}: see
-    :func:`abs_sum`). `switch(y)` returns s (N,) and ∇s (N, n + m).
+    :func:`qdframe.authoring.pieces.abs_sum`). `switch(y)` returns s (N,) and ∇s (N, n + m).
 
     The solver uses the support function a(y)·κ_ψ(s) with κ_ψ(s) = 1 − 2·S(u),
     u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³: the whole interval a·[−1, 1] at s = 0,
@@ -82,21 +83,6 @@ class SignTerm:
     switch: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     band: float = 1e-3
     name: str = "sgn"
-
-
-def abs_sum(indices: Sequence[int], scale: float, width: int) -> tuple[Callable, ...]:
-    """Amplitude groups for scale·Σ_{i ∈ indices} |y_i| (each |y_i| = max{y_i, −y_i});
-    `width` is the number of columns of y (n + m)."""
-
-    def group(i: int) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
-        def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            grads = np.zeros((y.shape[0], 2, width))
-            grads[:, 0, i], grads[:, 1, i] = scale, -scale
-            return np.stack([scale * y[:, i], -scale * y[:, i]], axis=1), grads
-
-        return pieces
-
-    return tuple(group(i) for i in indices)
 
 
 @dataclass(frozen=True)
@@ -292,3 +278,6 @@ def _finite_vector(field_name: str, values: object, length: int, free: bool = Fa
         expected = "finite numbers, or nan (free)" if free else "finite numbers (no NaN or inf)"
         raise InputError(field_name, expected, ",".join(map(str, vector)))
     return vector
+
+
+__getattr__ = moved(__name__, "qdframe.authoring.pieces", ("abs_sum",))  # moved in issue 18

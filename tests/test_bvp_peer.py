@@ -31,7 +31,7 @@ from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.model import InclusionModel, SetBlock, SignTerm
-from qdframe.models.friction import _affine, _constant, _coordinate
+from qdframe.authoring.pieces import affine, coordinate
 
 
 # ------------------------------------------------- a stand-in for stick-slip-oscillator
@@ -67,9 +67,9 @@ class StickSlipStandIn(InclusionModel):
 
     def blocks(self):
         return (
-            SetBlock.equation(0, _coordinate(1, 2), "p' = v"),
-            SetBlock.equation(1, _affine({0: -1.0}, 2), "v' ∈ −p − μ·Sgn(v)",
-                              (SignTerm(STICK_SLIP_FRICTION, _affine({1: -1.0}, 2), name="μ·Sgn(−v)"),)),
+            SetBlock.equation(0, coordinate(1, 2), "p' = v"),
+            SetBlock.equation(1, affine({0: -1.0}, 2), "v' ∈ −p − μ·Sgn(v)",
+                              (SignTerm(STICK_SLIP_FRICTION, affine({1: -1.0}, 2), name="μ·Sgn(−v)"),)),
         )
 
     def exact_solution(self, t):

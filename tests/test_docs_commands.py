@@ -27,8 +27,8 @@ SYNOPSIS = re.compile(r"\[|\]|\bNAME\b|\bMODEL\b|…|\.\.\.|\w\|\w|\bD\b$")
 
 NOT_RUN = {
     # the authoring guide's tutorial: it runs after the reader has written and installed
-    # the plugin the guide builds (tests/test_plugin_authoring.py installs the guide's code
-    # as a package and lists, checks and solves it through the CLI)
+    # the plugin the guide builds (tests/authoring/test_plugin_authoring.py installs the guide's
+    # code as a package and lists, checks and solves it through the CLI)
     "qdframe solve heated-room": "the guide's plugin, installed by its reader",
     "qdframe check-model heated-room": "the guide's plugin, installed by its reader",
     "qdframe solve heated-room --direction damped-gauss-newton --line-search shrinking": "the guide's plugin",

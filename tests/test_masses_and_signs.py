@@ -7,7 +7,8 @@ import qdframe
 from qdframe.cli import main
 from qdframe.functional import Functional
 from qdframe.grid import Grid
-from qdframe.model import InclusionModel, SetBlock, SignTerm, Surface, abs_sum
+from qdframe.authoring.pieces import abs_sum
+from qdframe.model import InclusionModel, SetBlock, SignTerm, Surface
 from qdframe.simulate import simulate
 
 

@@ -1,7 +1,7 @@
 """Peers: nosnoc, run on the problems it can state (solve_bvp: :mod:`.bvp_peer`).
 
 nosnoc (PyPI ``nosnoc``, FESD + homotopy + IPOPT through CasADi) solves the two problems
-of :mod:`qdframe.benchmarks.models` as optimal-control problems: the bounded input is a
+of :mod:`qdframe.models.bounded_input` as optimal-control problems: the bounded input is a
 control with box bounds, the cost is nosnoc's example cost (∫u² for the block, ∫(v1² + v2²)
 for the sliding-mode problem) and the end state is a terminal equality constraint.
 
@@ -36,7 +36,7 @@ import numpy as np
 from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
-from .models import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
+from ..models.bounded_input import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
 
 NOSNOC_STAGES = 10
 PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name)}

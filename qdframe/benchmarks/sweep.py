@@ -41,9 +41,9 @@ from ..errors import InputError, QdframeError, UnknownNameError
 from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
+from ..models.bounded_input import BENCH_MODELS
 from ..progress import bar
 from ..registry import available, lookup
-from .models import BENCH_MODELS
 from .bvp_peer import BVP_MODELS, run_solve_bvp
 from .peers import PEER_MODELS, run_nosnoc
 from .references import judge

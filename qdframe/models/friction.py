@@ -26,35 +26,12 @@ stick-slip-oscillator     arcs p = ±μ + r_k·cos(t − kπ); p ≡ 0 after 25�
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
 from typing import ClassVar
 
 import numpy as np
 
+from ..authoring.pieces import affine, constant, coordinate
 from ..model import InclusionModel, SetBlock, SignTerm
-
-Affine = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-
-
-# ---------------------------------------------------------------------- piece helpers
-def _affine(coefficients: Mapping[int, float], width: int, constant: float = 0.0) -> Affine:
-    """y ↦ constant + Σ c_i·y_i with its gradient: values (N,), gradients (N, width)."""
-    gradient = np.zeros(width)
-    for index, value in coefficients.items():
-        gradient[index] = value
-
-    def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return constant + y @ gradient, np.broadcast_to(gradient, y.shape).copy()
-
-    return rhs
-
-
-def _constant(value: float, width: int) -> Affine:
-    return _affine({}, width, value)
-
-
-def _coordinate(index: int, width: int) -> Affine:
-    return _affine({index: 1.0}, width)
 
 
 def _times(t: np.ndarray) -> np.ndarray:
@@ -118,9 +95,9 @@ class BlockStopStick(_ExactModel):
 
     def blocks(self) -> tuple[SetBlock, ...]:
         return (
-            SetBlock.equation(0, _coordinate(1, 2), "p' = v"),
-            SetBlock.equation(1, _constant(STOP_PULL, 2), "v' ∈ −μg·Sgn(v) + f",
-                              (SignTerm(STOP_FRICTION, _affine({1: -1.0}, 2), name="μg·Sgn(−v)"),)),
+            SetBlock.equation(0, coordinate(1, 2), "p' = v"),
+            SetBlock.equation(1, constant(STOP_PULL, 2), "v' ∈ −μg·Sgn(v) + f",
+                              (SignTerm(STOP_FRICTION, affine({1: -1.0}, 2), name="μg·Sgn(−v)"),)),
         )
 
     def motion(self, t: np.ndarray) -> np.ndarray:
@@ -175,10 +152,10 @@ class BlockBreakaway(_ExactModel):
 
     def blocks(self) -> tuple[SetBlock, ...]:
         return (
-            SetBlock.equation(0, _coordinate(1, 3), "p' = v"),
-            SetBlock.equation(1, _affine({2: BREAK_RAMP}, 3), "v' ∈ −μg·Sgn(v) + k·c",
-                              (SignTerm(BREAK_FRICTION, _affine({1: -1.0}, 3), name="μg·Sgn(−v)"),)),
-            SetBlock.equation(2, _constant(1.0, 3), "c' = 1"),
+            SetBlock.equation(0, coordinate(1, 3), "p' = v"),
+            SetBlock.equation(1, affine({2: BREAK_RAMP}, 3), "v' ∈ −μg·Sgn(v) + k·c",
+                              (SignTerm(BREAK_FRICTION, affine({1: -1.0}, 3), name="μg·Sgn(−v)"),)),
+            SetBlock.equation(2, constant(1.0, 3), "c' = 1"),
         )
 
     def motion(self, t: np.ndarray) -> np.ndarray:
@@ -229,9 +206,9 @@ class SlideOnLine(_ExactModel):
 
     def blocks(self) -> tuple[SetBlock, ...]:
         return (
-            SetBlock.equation(0, _coordinate(1, 2), "x1' = x2"),
-            SetBlock.equation(1, _constant(0.0, 2), "x2' ∈ −a·Sgn(x1 + x2)",
-                              (SignTerm(LINE_GAIN, _affine({0: -1.0, 1: -1.0}, 2), name="a·Sgn(−x1 − x2)"),)),
+            SetBlock.equation(0, coordinate(1, 2), "x1' = x2"),
+            SetBlock.equation(1, constant(0.0, 2), "x2' ∈ −a·Sgn(x1 + x2)",
+                              (SignTerm(LINE_GAIN, affine({0: -1.0, 1: -1.0}, 2), name="a·Sgn(−x1 − x2)"),)),
         )
 
     def motion(self, t: np.ndarray) -> np.ndarray:
@@ -304,11 +281,11 @@ class TwoSurfaceSliding(_ExactModel):
     switch_times = (TWO_REACH2, TWO_REACH1)
 
     def blocks(self) -> tuple[SetBlock, ...]:
-        minus_x1, minus_x2 = _affine({0: -1.0}, 2), _affine({1: -1.0}, 2)  # x2's switch shared by both
+        minus_x1, minus_x2 = affine({0: -1.0}, 2), affine({1: -1.0}, 2)  # x2's switch shared by both
         return (
-            SetBlock.equation(0, _constant(TWO_A1, 2), "x1' ∈ a1 − Sgn(x1) − b·Sgn(x2)",
+            SetBlock.equation(0, constant(TWO_A1, 2), "x1' ∈ a1 − Sgn(x1) − b·Sgn(x2)",
                               (SignTerm(1.0, minus_x1, name="Sgn(−x1)"), SignTerm(TWO_B, minus_x2, name="b·Sgn(−x2)"))),
-            SetBlock.equation(1, _constant(TWO_A2, 2), "x2' ∈ a2 − Sgn(x2)",
+            SetBlock.equation(1, constant(TWO_A2, 2), "x2' ∈ a2 − Sgn(x2)",
                               (SignTerm(1.0, minus_x2, name="Sgn(−x2)"),)),
         )
 
@@ -382,9 +359,9 @@ class StickSlipOscillator(_ExactModel):
 
     def blocks(self) -> tuple[SetBlock, ...]:
         return (
-            SetBlock.equation(0, _coordinate(1, 2), "p' = v"),
-            SetBlock.equation(1, _affine({0: -1.0}, 2), "v' ∈ −p − μ·Sgn(v)",
-                              (SignTerm(OSC_FRICTION, _affine({1: -1.0}, 2), name="μ·Sgn(−v)"),)),
+            SetBlock.equation(0, coordinate(1, 2), "p' = v"),
+            SetBlock.equation(1, affine({0: -1.0}, 2), "v' ∈ −p − μ·Sgn(v)",
+                              (SignTerm(OSC_FRICTION, affine({1: -1.0}, 2), name="μ·Sgn(−v)"),)),
         )
 
     def motion(self, t: np.ndarray) -> np.ndarray:

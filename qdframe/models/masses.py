@@ -10,6 +10,14 @@ terms are Filippov's set-valued Sgn. The trajectory must stay on the surface x4 
 and bring the third mass to x3(1) = 0; u(t) is an unknown control. x(0) is the end
 of the reaching phase on [−0.2, 0] with u = 0 from x(−0.2) = (−1, 1, −1, −1, 1, 1),
 computed by the Filippov simulator (not the paper's rounded numbers).
+
+:class:`Paper73` is the registered ``paper-7.3``, and :class:`Paper73Reduced` (the
+paper's reduction) derives from it. The set-language form ``paper_sets.Paper73Sets`` has
+the same functional and quasidifferential to rounding but, the solution not being unique,
+the default solve takes another path to another solution (19 iterations instead of 21, at
+the default nodes): registering it would change published results.
+tests/test_filippov_reference.py and qdframe/benchmarks/filippov.py state the reference
+Filippov system from this module.
 """
 
 from __future__ import annotations
@@ -18,7 +26,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..model import InclusionModel, SetBlock, SignTerm, Surface, abs_sum
+from ..authoring.pieces import abs_sum
+from ..model import InclusionModel, SetBlock, SignTerm, Surface
 
 REACHING_START = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
 REACHING_TIME = 0.2

@@ -1,4 +1,12 @@
-"""The paper's Examples 7.1 and 7.2 (Section 7)."""
+"""The paper's Examples 7.1 and 7.2 (Section 7), with hand-written pieces and gradients.
+
+These are the registered ``paper-7.1`` and ``paper-7.2``: every published result (README,
+the benchmarks' references, the solver tests) was computed with them. The same examples
+in the set language are ``paper_sets.py``, the form to read; the two are kept on purpose,
+as two independent codings that check each other: tests/sets/test_paper_examples.py
+asserts the same functional and quasidifferential at random points and the same iterates,
+which tests the set compiler against pieces written by hand.
+"""
 
 from __future__ import annotations
 

@@ -1,9 +1,12 @@
-"""The paper's Examples 7.1–7.3 written with the modeling layer (:mod:`qdframe.sets`).
+"""The paper's Examples 7.1–7.3 in the set language (:mod:`qdframe.sets`): the form to read.
 
 They compile to the same pieces as the hand-written models in ``paper.py`` and
-``masses.py`` (tests/test_sets.py compares functional values, quasidifferentials and
-solves); the hand-written ones stay registered as ``paper-7.1``, ``paper-7.2`` and
-``paper-7.3``. These are not registered: import them, or see docs/authoring.md.
+``masses.py`` (tests/sets/test_paper_examples.py compares functional values,
+quasidifferentials and solves). The registry serves the hand-written ones as
+``paper-7.1``, ``paper-7.2`` and ``paper-7.3``: the published results were computed with
+them, and on ``paper-7.3``, whose solution is not unique, this form's default solve takes
+another path (``masses.py`` says more). These are not registered: import them, or see
+docs/authoring.md.
 """
 
 from __future__ import annotations

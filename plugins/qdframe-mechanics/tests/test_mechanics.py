@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.check import check_model
+from qdframe.authoring import check_model
 from qdframe.cli import main
 from qdframe.functional import Functional
 from qdframe.grid import Grid

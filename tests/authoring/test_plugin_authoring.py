@@ -12,10 +12,10 @@ import pytest
 
 import qdframe
 from qdframe import registry
-from qdframe.check import check_model
+from qdframe.authoring import check_model
 from qdframe.cli import main
 
-GUIDE = Path(__file__).resolve().parent.parent / "docs" / "authoring.md"
+GUIDE = Path(__file__).resolve().parents[2] / "docs" / "authoring.md"
 
 
 def _blocks(language):

@@ -1,4 +1,4 @@
-"""`qdframe check-model` (qdframe/check.py): pieces and gradients against finite differences."""
+"""`qdframe check-model` (qdframe/authoring/check.py): pieces and gradients against finite differences."""
 
 import json
 
@@ -7,7 +7,7 @@ import pytest
 
 import qdframe
 from qdframe import registry
-from qdframe.check import ModelCheckError, add_check_parser, check_model, main_check
+from qdframe.authoring.check import ModelCheckError, add_check_parser, check_model, main_check
 from qdframe.cli import main as cli_main
 from qdframe.cli import _Parser
 from qdframe.model import Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface

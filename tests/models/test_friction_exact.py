@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qdframe.check import check_model
+from qdframe.authoring import check_model
 from qdframe.errors import QdframeError
 from qdframe.models.friction import FRICTION_MODELS
 from qdframe.simulate import simulate

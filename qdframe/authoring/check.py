@@ -1,0 +1,335 @@
+"""`qdframe check-model NAME`: every piece and gradient of a model against finite differences.
+
+A model hands the solver its pieces with gradients (:mod:`qdframe.model`): max-groups
+f_q(y) with ∂f/∂y, min-groups g_p(y, ψ) with ∂g/∂y, sign terms' amplitudes and switches,
+the surface e(x) and the cost's groups. A wrong gradient does not stop a solve: it
+misleads the direction and the run stalls or ends `stationary` far from I = 0. This
+check evaluates every piece at random states and controls (and random ψ) around the
+model's boundary data and initial guess, compares each gradient with central finite
+differences, and reports the worst error per piece; a piece that returns NaN/inf, an
+array of the wrong shape, or a negative sign amplitude fails too.
+
+The error of an entry is |∂_fd − ∂| / max(1, |∂|). Where it exceeds the tolerance the
+difference is taken again with a step 100 times smaller (a kink of |·| inside the first
+step is not an error); the smaller of the two errors counts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..argtypes import integer, positive_float
+from ..errors import InputError, QdframeError
+from ..model import InclusionModel
+
+
+class ModelCheckError(QdframeError):
+    """A model's piece has a wrong gradient, returns NaN/inf or the wrong shape (exit status 1)."""
+
+
+@dataclass
+class PieceCheck:
+    """The verdict on one group of pieces."""
+
+    label: str
+    status: str  # "ok" | "wrong gradient" | "non-finite" | "bad shape" | "negative amplitude" | "error"
+    worst_error: float  # worst gradient error (0 if not compared)
+    detail: str = ""  # where the worst error is, or what went wrong
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+@dataclass
+class CheckReport:
+    """All pieces of a model checked at `samples` random points."""
+
+    model: str
+    samples: int
+    seed: int
+    tol: float
+    pieces: list[PieceCheck] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return all(p.ok for p in self.pieces)
+
+    @property
+    def failures(self) -> list[PieceCheck]:
+        return [p for p in self.pieces if not p.ok]
+
+    def table(self) -> str:
+        width = max([len(p.label) for p in self.pieces] + [5])
+        lines = [
+            f"model {self.model}: {len(self.pieces)} piece groups at {self.samples} random points (seed {self.seed}), "
+            f"gradient tolerance {self.tol:g}",
+            f"  {'piece':<{width}}  {'worst error':>11}  status",
+        ]
+        for p in self.pieces:
+            status = p.status + (f" — {p.detail}" if p.detail and not p.ok else "")
+            lines.append(f"  {p.label:<{width}}  {p.worst_error:>11.1e}  {status}")
+        lines.append("all pieces agree with finite differences" if self.ok else f"{len(self.failures)} piece group(s) failed")
+        return "\n".join(lines)
+
+    def message(self) -> str:
+        """One line naming the first failure."""
+        if self.ok:
+            return f"model {self.model!r}: all pieces agree with finite differences"
+        first = self.failures[0]
+        more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
+        return f"model {self.model!r}: {first.label}: {first.status}: {first.detail}{more}"
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "samples": self.samples, "seed": self.seed, "tol": self.tol, "ok": self.ok,
+                "pieces": [asdict(p) for p in self.pieces]}
+
+
+class _Failed(Exception):
+    def __init__(self, status: str, detail: str) -> None:
+        super().__init__(detail)
+        self.status, self.detail = status, detail
+
+
+def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: float = 1e-6) -> CheckReport:
+    """Check every piece of `model` against central finite differences at `samples` random points."""
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise InputError("samples", "an integer ≥ 1", samples)
+    if not (isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0):
+        raise InputError("tol", "a positive number", tol)
+    rng = np.random.default_rng(seed)
+    n = model.n_states
+    names = list(model.state_names) + list(model.control_names)
+    y = _sample_points(model, samples, rng)
+    report = CheckReport(model.name or type(model).__name__, int(samples), int(seed), float(tol))
+    checker = _Checker(y, names, tol)
+
+    for block in model.blocks():
+        label = f"{block.name or 'block ' + str(block.coords)}"
+        k = block.size
+        psi = _sample_psi(k, samples, rng)
+        for group in block.max_groups:
+            report.pieces.append(checker.run(
+                f"{label} max-group {group.name!r}",
+                lambda yy, _ps, g=group: g.pieces(yy),
+                value_shape=(None, k), grad_layout="max",
+            ))
+        for group in block.min_groups:
+            report.pieces.append(checker.run(
+                f"{label} min-group {group.name!r}",
+                lambda yy, ps, g=group: g.pieces(yy, ps),
+                value_shape=(None,), psi=psi,
+            ))
+        for term in block.signs:
+            report.pieces.append(checker.run(
+                f"{label} sign term {term.name!r} switch",
+                lambda yy, _ps, t=term: _as_group(t.switch(yy)),
+                value_shape=(1,),
+            ))
+            if not isinstance(term.amplitude, (int, float)):
+                report.pieces.append(checker.amplitude(f"{label} sign term {term.name!r} amplitude", term.amplitude))
+            elif term.amplitude < 0:
+                report.pieces.append(PieceCheck(f"{label} sign term {term.name!r} amplitude", "negative amplitude", 0.0,
+                                                f"constant amplitude {term.amplitude} < 0"))
+    surface = model.surface()
+    if surface is not None:
+        states_only = _Checker(y[:, :n], names[:n], tol)
+        report.pieces.append(states_only.run("surface e(x)", lambda yy, _ps: surface.function(yy), value_shape=(None,)))
+    cost = model.cost()
+    if cost is not None:
+        for kind, groups in (("max-group", cost.max_groups), ("min-group", cost.min_groups)):
+            for index, fn in enumerate(groups):
+                report.pieces.append(checker.run(f"cost {kind} {index + 1}", lambda yy, _ps, f=fn: f(yy), value_shape=(None,)))
+    return report
+
+
+def _as_group(pair):
+    value, grad = pair
+    value, grad = np.asarray(value), np.asarray(grad)
+    if value.ndim != 1 or grad.ndim != 2:
+        raise _Failed("bad shape", f"switch returned shapes {value.shape} and {grad.shape}, expected (N,) and (N, n + m)")
+    return value[:, None], grad[:, None, :]
+
+
+def _sample_points(model: InclusionModel, samples: int, rng: np.random.Generator) -> np.ndarray:
+    """Uniform points in a box around x0, the end values, the initial guess and a known solution (±1)."""
+    n, m = model.n_states, model.n_controls
+    t = np.linspace(0.0, model.T, 11)
+    known = [model.x0[None, :]]
+    try:
+        x, _ = model.initial_guess(t)
+        known.append(np.asarray(x, float).reshape(t.size, n))
+    except Exception:  # the check is about pieces; a broken guess shows up elsewhere
+        pass
+    try:
+        exact = model.exact_solution(t)
+        if exact is not None:
+            known.append(np.asarray(exact, float).reshape(t.size, n))
+    except Exception:
+        pass
+    states = np.concatenate(known)
+    states = states[np.all(np.isfinite(states), axis=1)]
+    lo, hi = states.min(axis=0), states.max(axis=0)
+    for j, value in zip(model.end_indices, model.end_values):
+        lo[j], hi[j] = min(lo[j], value), max(hi[j], value)
+    x = rng.uniform(lo - 1.0, hi + 1.0, size=(samples, n))
+    if m == 0:
+        return x
+    try:
+        u0 = np.asarray(model.initial_controls(t), float).reshape(t.size, m)
+        ulo, uhi = u0.min(axis=0), u0.max(axis=0)
+    except Exception:
+        ulo, uhi = np.zeros(m), np.zeros(m)
+    return np.concatenate([x, rng.uniform(ulo - 1.0, uhi + 1.0, size=(samples, m))], axis=1)
+
+
+def _sample_psi(k: int, samples: int, rng: np.random.Generator) -> np.ndarray:
+    if k == 1:
+        return rng.choice([-1.0, 1.0], size=(samples, 1))
+    psi = rng.standard_normal((samples, k))
+    return psi / np.linalg.norm(psi, axis=1, keepdims=True)
+
+
+class _Checker:
+    """Evaluates one group at the sample points and compares its gradient with differences."""
+
+    def __init__(self, y: np.ndarray, names: list[str], tol: float) -> None:
+        self.y, self.names, self.tol = y, names, tol
+        self.samples, self.width = y.shape
+
+    def run(self, label: str, fn: Callable, value_shape: tuple, grad_layout: str = "plain",
+            psi: np.ndarray | None = None) -> PieceCheck:
+        try:
+            value, grad = self._evaluate(fn, self.y, psi, value_shape, grad_layout)
+            worst, detail = self._compare(fn, value, grad, psi, value_shape, grad_layout)
+        except _Failed as failure:
+            return PieceCheck(label, failure.status, float("nan"), failure.detail)
+        except Exception as exc:  # a model's own bug: report it, do not crash the check
+            return PieceCheck(label, "error", float("nan"), f"{type(exc).__name__}: {exc}")
+        if worst > self.tol:
+            return PieceCheck(label, "wrong gradient", worst, detail)
+        return PieceCheck(label, "ok", worst, detail)
+
+    def amplitude(self, label: str, groups) -> PieceCheck:
+        """A sign term's amplitude Σ_i max_q a_iq(y): each group's gradient, and a ≥ 0."""
+        worst, total = 0.0, np.zeros(self.samples)
+        for index, fn in enumerate(groups):
+            piece = self.run(f"{label} group {index + 1}", lambda yy, _ps, f=fn: f(yy), value_shape=(None,))
+            if not piece.ok:
+                return PieceCheck(label, piece.status, piece.worst_error, f"group {index + 1}: {piece.detail}")
+            worst = max(worst, piece.worst_error)
+            total += np.asarray(fn(self.y)[0]).max(axis=1)
+        if np.any(total < -1e-12):
+            at = int(np.argmin(total))
+            return PieceCheck(label, "negative amplitude", worst,
+                              f"a(y) = {total[at]:.3g} < 0 at {self._point(at)} (a Sgn amplitude must be ≥ 0)")
+        return PieceCheck(label, "ok", worst)
+
+    # -- evaluation with shape and finiteness checks
+    def _evaluate(self, fn, y, psi, value_shape, grad_layout):
+        rows = y.shape[0]
+        value, grad = fn(y, None if psi is None else psi)
+        value, grad = np.asarray(value, dtype=float), np.asarray(grad, dtype=float)
+        expected_value = (rows,) + value_shape
+        if value.ndim != len(expected_value) or any(e is not None and e != a for e, a in zip(expected_value, value.shape)):
+            raise _Failed("bad shape", f"values have shape {value.shape}, expected {_shape(expected_value)}")
+        expected_grad = value.shape + (self.width,)
+        if grad.shape != expected_grad:
+            raise _Failed("bad shape", f"gradients have shape {grad.shape}, expected {expected_grad}")
+        for what, array in (("value", value), ("gradient", grad)):
+            finite = np.isfinite(array)
+            if not finite.all():
+                at = int(np.argwhere(~finite)[0][0])
+                raise _Failed("non-finite", f"a {what} is {array.reshape(rows, -1)[at][~finite.reshape(rows, -1)[at]][0]} "
+                                            f"at {self._point(at, y)}")
+        return value, grad
+
+    def _values(self, fn, y, psi):
+        value, _ = fn(y, psi)
+        return np.asarray(value, dtype=float)
+
+    def _compare(self, fn, value, grad, psi, value_shape, grad_layout):
+        error = self._errors(fn, grad, psi, 1e-6)
+        if np.max(error) > self.tol:  # maybe a kink within the step: difference again, 100× finer
+            error = np.minimum(error, self._errors(fn, grad, psi, 1e-8))
+        worst = float(np.max(error))
+        index = np.unravel_index(int(np.argmax(error)), error.shape)
+        sample, column = int(index[0]), int(index[-1])
+        detail = f"∂/∂{self.names[column]} at {self._point(sample)}"
+        if worst > self.tol:
+            fd = self._fd(fn, psi, 1e-6)
+            detail = (f"∂/∂{self.names[column]} is {grad[index]:.6g}, finite differences give {fd[index]:.6g}, "
+                      f"at {self._point(sample)}")
+        return worst, detail
+
+    def _fd(self, fn, psi, relative):
+        y, (s, w) = self.y, self.y.shape
+        step = relative * np.maximum(1.0, np.abs(y))  # (S, W)
+        shift = np.zeros((w, s, w))
+        shift[np.arange(w), :, np.arange(w)] = step.T
+        plus = (y[None] + shift).reshape(w * s, w)
+        minus = (y[None] - shift).reshape(w * s, w)
+        psi_rep = None if psi is None else np.tile(psi, (w, 1))
+        with np.errstate(all="ignore"):
+            up, down = self._values(fn, plus, psi_rep), self._values(fn, minus, psi_rep)
+        diff = (up - down).reshape((w, s) + up.shape[1:])
+        diff = diff / (2.0 * step.T.reshape((w, s) + (1,) * (up.ndim - 1)))
+        return np.moveaxis(diff, 0, -1)  # (S, …, W)
+
+    def _errors(self, fn, grad, psi, relative):
+        fd = self._fd(fn, psi, relative)
+        error = np.abs(fd - grad) / np.maximum(1.0, np.abs(grad))
+        return np.where(np.isfinite(error), error, np.inf)
+
+    def _point(self, sample: int, y: np.ndarray | None = None) -> str:
+        row = (self.y if y is None else y)[sample]
+        return "(" + ", ".join(f"{name} = {value:.4g}" for name, value in zip(self.names, row)) + ")"
+
+
+def _shape(shape: tuple) -> str:
+    return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+
+
+# ------------------------------------------------------------------ command line
+
+
+
+
+
+
+def add_check_parser(subparsers) -> argparse.ArgumentParser:
+    """Add `check-model` to the `qdframe` command's subparsers (cli.build_parser)."""
+    parser = subparsers.add_parser("check-model", help="check a model's pieces and gradients against finite differences")
+    parser.add_argument("model", help="model name (see `qdframe list`)")
+    parser.add_argument("--samples", type=integer(1), default=64, help="random points (default 64)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
+    parser.add_argument("--tol", type=positive_float, default=1e-6,
+                        help="largest gradient error |fd − ∂|/max(1, |∂|) accepted (default 1e-6)")
+    parser.add_argument("--json", metavar="FILE", help="write the report as JSON")
+    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return parser
+
+
+def main_check(args: argparse.Namespace) -> int:
+    """Run `qdframe check-model`: print the table; a failure raises ModelCheckError (exit 1)."""
+    from ..descent import load_model
+
+    if args.json:
+        parent = Path(args.json).expanduser().resolve().parent
+        if Path(args.json).is_dir() or not parent.is_dir():
+            raise InputError("--json", "a file path in an existing, writable directory", args.json)
+    model = load_model(args.model)
+    report = check_model(model, samples=args.samples, seed=args.seed, tol=args.tol)
+    if args.json:
+        Path(args.json).write_text(json.dumps(report.to_dict(), indent=1) + "\n")
+    if not args.quiet:
+        print(report.table())
+    if not report.ok:
+        raise ModelCheckError(report.message())
+    return 0

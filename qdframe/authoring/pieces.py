@@ -1,0 +1,58 @@
+"""Pieces with their gradients, for models written by hand (:mod:`qdframe.model`).
+
+A hand-written piece maps y = (x, u), an array (N, n + m), to its values and gradients
+for all nodes at once. The common ones, ready made:
+
+- :func:`affine`: y ↦ c + Σ a_i·y_i, values (N,) and gradients (N, n + m), the
+  right-hand side of :meth:`~qdframe.model.SetBlock.equation` or a sign term's switch s(y);
+  :func:`constant` and :func:`coordinate` are its special cases;
+- :func:`abs_sum`: the amplitude groups of scale·Σ|y_i| for a
+  :class:`~qdframe.model.SignTerm` (each |y_i| = max{y_i, −y_i}, paper Section 5).
+
+Models written with :mod:`qdframe.sets` need none of these: SymPy derives their gradients.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+Affine = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def affine(coefficients: Mapping[int, float], width: int, constant: float = 0.0) -> Affine:
+    """y ↦ constant + Σ c_i·y_i with its gradient: values (N,), gradients (N, width)."""
+    gradient = np.zeros(width)
+    for index, value in coefficients.items():
+        gradient[index] = value
+
+    def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return constant + y @ gradient, np.broadcast_to(gradient, y.shape).copy()
+
+    return rhs
+
+
+def constant(value: float, width: int) -> Affine:
+    """y ↦ value (gradient 0)."""
+    return affine({}, width, value)
+
+
+def coordinate(index: int, width: int) -> Affine:
+    """y ↦ y_index."""
+    return affine({index: 1.0}, width)
+
+
+def abs_sum(indices: Sequence[int], scale: float, width: int) -> tuple[Callable, ...]:
+    """Amplitude groups for scale·Σ_{i ∈ indices} |y_i| (each |y_i| = max{y_i, −y_i});
+    `width` is the number of columns of y (n + m)."""
+
+    def group(i: int) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            grads = np.zeros((y.shape[0], 2, width))
+            grads[:, 0, i], grads[:, 1, i] = scale, -scale
+            return np.stack([scale * y[:, i], -scale * y[:, i]], axis=1), grads
+
+        return pieces
+
+    return tuple(group(i) for i in indices)

@@ -1,0 +1,212 @@
+"""The compiler: a model's sets, surface and cost to qdframe's low-level pieces.
+
+Each set's normal form (:class:`~qdframe.sets.base._Support`) becomes a
+:class:`~qdframe.model.SetBlock`: polytopes are max-groups, ψ-formulas min-groups, sign
+terms :class:`~qdframe.model.SignTerm`. Gradients are derived by SymPy and lambdified to
+NumPy once, so every piece is evaluated for all nodes at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from ..errors import InputError
+from ..model import Cost, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
+from .base import _Support, as_set
+from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _s, _smooth, _vector
+
+
+def _scalar_groups(expr: sp.Expr, where: str, allow_min: bool) -> tuple[list[list[sp.Expr]], list[list[sp.Expr]]]:
+    """expr = Σ max-groups + Σ min-groups: smooth terms (one piece), c·|e|, c·Max(…), c·Min(…)."""
+    terms = sp.Add.make_args(sp.expand(expr, deep=False))
+    smooth: list[sp.Expr] = []
+    maxes: list[list[sp.Expr]] = []
+    mins: list[list[sp.Expr]] = []
+    allowed = "smooth terms, c·|e| and c·Max(e_1, …)" + (", c·Min(e_1, …)" if allow_min else " with c > 0")
+    for term in terms:
+        if not any(term.has(f) for f in _NONSMOOTH):
+            smooth.append(term)
+            continue
+        coeff, rest = term.as_coeff_Mul()
+        if isinstance(rest, sp.Abs):
+            args = [rest.args[0], -rest.args[0]]
+            kind = "max" if coeff > 0 else "min"
+        elif isinstance(rest, sp.Max):
+            args, kind = list(rest.args), "max" if coeff > 0 else "min"
+        elif isinstance(rest, sp.Min):
+            args, kind = list(rest.args), "min" if coeff > 0 else "max"
+        else:
+            raise SetStructureError(where, f"a sum of {allowed} (paper (supf)/(subf))", str(term))
+        for a in args:
+            _smooth(a, f"{where}: argument of {rest.func.__name__}")
+        if kind == "min" and not allow_min:
+            raise SetStructureError(where, f"an amplitude ≥ 0: a sum of {allowed}", str(term))
+        (maxes if kind == "max" else mins).append([coeff * a for a in args])
+    if smooth:
+        maxes.insert(0, [sp.Add(*smooth)])
+    return maxes, mins
+
+
+# ---------------------------------------------------------------- lambdification
+class _Vectorized:
+    """Values and y-gradients of formulas, lambdified once and evaluated for all nodes at once."""
+
+    def __init__(self, exprs: Sequence[sp.Expr], symbols: Sequence[sp.Symbol], psi: Sequence[sp.Symbol] = ()) -> None:
+        self.count = len(exprs)
+        self.width = len(symbols)
+        self.psi = tuple(psi)
+        grads = [[sp.diff(e, s) for s in symbols] for e in exprs]
+        self.entries = [(q, j) for q in range(self.count) for j in range(self.width) if grads[q][j] != 0]
+        outputs = list(exprs) + [grads[q][j] for q, j in self.entries]
+        self.function = sp.lambdify(list(symbols) + list(self.psi), outputs, modules="numpy", cse=True)
+
+    def __call__(self, y: np.ndarray, psi: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        rows = y.shape[0]
+        args = [y[:, i] for i in range(self.width)]
+        if self.psi:
+            args += [psi[:, j] for j in range(len(self.psi))]  # type: ignore[index]
+        with np.errstate(all="ignore"):  # NaN/inf are reported by the functional's checks
+            out = self.function(*args)
+        values = np.empty((rows, self.count))
+        for q in range(self.count):
+            values[:, q] = out[q]
+        grads = np.zeros((rows, self.count, self.width))
+        for (q, j), value in zip(self.entries, out[self.count :]):
+            grads[:, q, j] = value
+        return values, grads
+
+
+def _max_pieces(vertices: list[tuple[sp.Expr, ...]], symbols) -> Callable:
+    k = len(vertices[0])
+    flat = _Vectorized([v for vertex in vertices for v in vertex], symbols)
+    m = len(vertices)
+
+    def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        values, grads = flat(y)
+        return values.reshape(-1, m, k), grads.reshape(-1, m, k, flat.width)
+
+    return pieces
+
+
+def _min_pieces(formulas: list[sp.Expr], symbols, dim: int) -> Callable:
+    vectorized = _Vectorized(formulas, symbols, _psi(dim))
+    return lambda y, psi: vectorized(y, psi)
+
+
+def _scalar_pieces(exprs: list[sp.Expr], symbols) -> Callable:
+    vectorized = _Vectorized(exprs, symbols)
+    return lambda y: vectorized(y)
+
+
+def _switch(expr: sp.Expr, symbols) -> Callable:
+    """s(y) and ∇s; one callable per distinct expression, so that sign terms on the same
+    surface share one Filippov selection (:class:`~qdframe.functional.Functional`)."""
+    return _switch_cached(expr, tuple(symbols))
+
+
+@lru_cache(maxsize=None)
+def _switch_cached(expr: sp.Expr, symbols: tuple) -> Callable:
+    vectorized = _Vectorized([expr], symbols)
+
+    def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        values, grads = vectorized(y)
+        return values[:, 0], grads[:, 0, :]
+
+    return switch
+
+
+# ------------------------------------------------------------------- compilation
+@dataclass(frozen=True)
+class Compiled:
+    """A model's sets, surface and cost as low-level qdframe objects."""
+
+    blocks: tuple[SetBlock, ...]
+    surface: Surface | None
+    cost: Cost | None
+
+
+def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, symbols, where: str) -> SignTerm:
+    amplitude = sp.sympify(amplitude)
+    if amplitude.is_number:
+        a = float(amplitude)
+        value: float | tuple = abs(a)
+        switch = switch if a >= 0 else -switch
+        if a == 0:
+            value = 0.0
+    else:
+        terms = sp.Add.make_args(sp.expand(amplitude, deep=False))
+        if all(t.as_coeff_Mul()[0] < 0 for t in terms):  # −a·Sgn(s) = a·Sgn(−s)
+            amplitude, switch = -amplitude, -switch
+        maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
+        value = tuple(_scalar_pieces(group, symbols) for group in maxes)
+    name = label if amplitude == 1 else f"({_s(amplitude)})·{label}" if amplitude.is_Add else f"{_s(amplitude)}·{label}"
+    return SignTerm(value, _switch(sp.expand(switch), symbols), band, name)
+
+
+def compile_sets(
+    sets: Mapping[Any, Any],
+    states: Sequence[sp.Symbol],
+    controls: Sequence[sp.Symbol] = (),
+    surface: Any = None,
+    cost: Any = None,
+    weight: float = 1.0,
+    model: str = "model",
+) -> Compiled:
+    """Compile {state or tuple of states: set} (+ surface formulas, cost integrand) to qdframe's pieces."""
+    symbols = tuple(states) + tuple(controls)
+    index = {s: i for i, s in enumerate(states)}
+    blocks: list[SetBlock] = []
+    for key, value in sets.items():
+        keys = tuple(key) if isinstance(key, (tuple, list)) else (key,)
+        coords = []
+        for k in keys:
+            k = sp.Symbol(k, real=True) if isinstance(k, str) else k
+            if k not in index:
+                raise InputError(f"{model}.sets", f"keys that are states ({', '.join(map(str, states))}) or tuples of them", k)
+            coords.append(index[k])
+        name = "F[" + ", ".join(str(states[c]) for c in coords) + "]"
+        f = as_set(value)
+        if f.dim != len(coords):
+            raise SetStructureError(f"{model} {name} = {f.label}", f"a set in R^{len(coords)}", f"a set in R^{f.dim}")
+        support = f.support().merged()
+        used = set().union(*(e.free_symbols for e in _all_exprs(support))) if _all_exprs(support) else set()
+        psi_used = {s for s in used if s in _psi(f.dim)}
+        unknown = used - set(symbols) - psi_used
+        if unknown:
+            raise InputError(f"{model} {name}", f"formulas in the states and controls {', '.join(map(str, symbols))}",
+                             ", ".join(sorted(map(str, unknown))))
+        if support.signs and f.dim != 1:
+            raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
+        max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
+        min_groups = tuple(MinGroup(_min_pieces(gs, symbols, f.dim), label) for label, gs in support.mins)
+        signs = tuple(_sign_term(label, a, s, band, symbols, f"{model} {name}") for label, a, s, band in support.signs)
+        blocks.append(SetBlock(tuple(coords), max_groups, min_groups, name, signs))
+    compiled_surface = None
+    if surface is not None:
+        formulas = _vector(surface, f"{model} surface")
+        extra = set().union(*(e.free_symbols for e in formulas)) - set(states)
+        if extra:
+            raise InputError(f"{model} surface", f"formulas in the states {', '.join(map(str, states))}",
+                             ", ".join(sorted(map(str, extra))))
+        vectorized = _Vectorized(list(formulas), tuple(states))
+        compiled_surface = Surface(lambda x: vectorized(x))
+    compiled_cost = None
+    if cost is not None:
+        maxes, mins = _scalar_groups(_expr(cost, f"{model} cost"), f"{model} cost", allow_min=True)
+        compiled_cost = Cost(
+            tuple(_scalar_pieces(g, symbols) for g in maxes), tuple(_scalar_pieces(g, symbols) for g in mins), weight
+        )
+    return Compiled(tuple(blocks), compiled_surface, compiled_cost)
+
+
+def _all_exprs(support: _Support) -> list[sp.Expr]:
+    out = [v for _, vs in support.polytopes for vertex in vs for v in vertex]
+    out += [g for _, gs in support.mins for g in gs]
+    out += [e for _, a, s, _ in support.signs for e in (sp.sympify(a), s)]
+    return out

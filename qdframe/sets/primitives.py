@@ -1,0 +1,153 @@
+"""The primitive sets: Interval, Box, Ball, Ellipse and Filippov's Sgn (a formula is a Point).
+
+Each gives its support function c(F, ψ) in the paper's form: vertices for a polytope
+(paper (supf)), one formula g(y, ψ) for a ball or an ellipse (paper (subf), Remark 5.1),
+a sign term for Sgn (paper Section 5).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import sympy as sp
+
+from .base import Set, _cartesian_sum, _NotHere, _Support
+from .combinators import Hull
+from .expressions import SetStructureError, _dot, _expr, _norm, _psi, _s, _segment_formula, _smooth, _text, _vector
+
+
+class Interval(Set):
+    """The segment [lo(y), hi(y)] (co{lo, hi}; endpoints in either order): c = max{lo·ψ, hi·ψ}.
+
+    ``Interval(Min(e_1, …, e_m), Max(e_1, …, e_m))`` is the hull co{e_1, …, e_m}
+    (:func:`hull`), the paper's [min, max] velocity range (Section 5)."""
+
+    def __new__(cls, lo: Any = None, hi: Any = None) -> "Set":
+        ends = [_expr(v, "Interval end") if isinstance(v, (sp.Basic, int, float)) else None for v in (lo, hi)]
+        if isinstance(ends[0], sp.Min) and isinstance(ends[1], sp.Max) and set(ends[0].args) == set(ends[1].args):
+            return Hull(*ends[0].args)  # [min e_i, max e_i] = co{e_i}
+        return super().__new__(cls)
+
+    def __init__(self, lo: Any, hi: Any) -> None:
+        for end, where in ((lo, "Interval lower end"), (hi, "Interval upper end")):
+            if isinstance(end, sp.Basic) and end.has(sp.Min, sp.Max):
+                raise SetStructureError(
+                    where, "a continuously differentiable formula; for the range [min e_i, max e_i] write "
+                    "hull(e_1, …, e_m) (or Interval(Min(e_1, …), Max(e_1, …)) with the same e_i)", _s(end))
+        self.lo, self.hi = _smooth(lo, "Interval lower end"), _smooth(hi, "Interval upper end")
+        if self.lo.is_number and self.hi.is_number and self.lo > self.hi:
+            raise SetStructureError(f"Interval({self.lo}, {self.hi})", "lo ≤ hi for constant ends")
+        self.label = f"[{_s(self.lo)}, {_s(self.hi)}]"
+
+    def polytope(self):
+        return [(self.lo,), (self.hi,)]
+
+
+class Box(Set):
+    """The box Π_i [lo_i, hi_i] ⊂ R^k: the Minkowski sum of its k axis segments."""
+
+    def __init__(self, lo: Sequence[Any], hi: Sequence[Any]) -> None:
+        self.lo, self.hi = _vector(lo, "Box lower corner"), _vector(hi, "Box upper corner")
+        if len(self.lo) != len(self.hi):
+            raise SetStructureError("Box", "corners of equal length", (len(self.lo), len(self.hi)))
+        self.dim = len(self.lo)
+        self.label = f"Box({_text(self.lo)}, {_text(self.hi)})"
+
+    def _segments(self) -> list[list[tuple[sp.Expr, ...]]]:
+        zero = sp.Integer(0)
+        return [
+            [tuple(end if j == i else zero for j in range(self.dim)) for end in (self.lo[i], self.hi[i])]
+            for i in range(self.dim)
+        ]
+
+    def support(self):
+        return _Support(self.dim, [(f"{self.label} axis {i + 1}", s) for i, s in enumerate(self._segments())])
+
+    def polytope(self):
+        return _cartesian_sum(self._segments(), self.label)
+
+    def formulas(self, psi):
+        return [sp.Add(*(_segment_formula((lo,), (hi,), (p,)) for lo, hi, p in zip(self.lo, self.hi, psi)))]
+
+
+class Ball(Set):
+    """The ball B_r(c) = {c + r·v: ‖v‖ ≤ 1}: c(B, ψ) = ⟨c, ψ⟩ + r‖ψ‖ (paper Remark 5.1)."""
+
+    def __init__(self, center: Any, radius: Any) -> None:
+        self.center = _vector(center, "Ball center")
+        self.radius = _smooth(radius, "Ball radius")
+        if self.radius.is_number and self.radius < 0:
+            raise SetStructureError(f"Ball({_text(self.center)}, {self.radius})", "a radius ≥ 0")
+        self.dim = len(self.center)
+        self.label = f"B({_text(self.center)}, {_s(self.radius)})"
+
+    def support(self):
+        if self.dim == 1:
+            return super().support()
+        return _Support(self.dim, mins=[(self.label, self.formulas(_psi(self.dim)))])
+
+    def polytope(self):
+        if self.dim == 1:  # in R a ball is a segment
+            return [(self.center[0] - self.radius,), (self.center[0] + self.radius,)]
+        raise _NotHere("a ball (its support function is not a max of linear functions of ψ)")
+
+    def formulas(self, psi):
+        return [_dot(self.center, psi) + self.radius * _norm(psi)]
+
+
+class Ellipse(Set):
+    """An ellipse (ellipsoid) with center c and either semi-axes a_i along the coordinate axes,
+    c(E, ψ) = ⟨c, ψ⟩ + sqrt(Σ a_i² ψ_i²), or a shape matrix Q ⪰ 0, c(E, ψ) = ⟨c, ψ⟩ + sqrt(ψᵀQψ)."""
+
+    def __init__(self, center: Any, semi_axes: Any = None, *, matrix: Any = None) -> None:
+        self.center = _vector(center, "Ellipse center")
+        self.dim = len(self.center)
+        if (semi_axes is None) == (matrix is None):
+            raise SetStructureError("Ellipse", "exactly one of semi_axes=(a_1, …, a_k) or matrix=Q")
+        if semi_axes is not None:
+            axes = _vector(semi_axes, "Ellipse semi-axes")
+            if len(axes) != self.dim:
+                raise SetStructureError("Ellipse semi-axes", f"{self.dim} formulas", len(axes))
+            self.quadratic = sp.diag(*[a**2 for a in axes])
+            shape = _text(axes)
+        else:
+            q = sp.Matrix(matrix)
+            if q.shape != (self.dim, self.dim):
+                raise SetStructureError("Ellipse matrix", f"a {self.dim}×{self.dim} matrix", q.shape)
+            self.quadratic = q.applyfunc(lambda v: _smooth(v, "Ellipse matrix"))
+            shape = str(q.tolist())
+        self.label = f"E({_text(self.center)}, {shape})"
+
+    def support(self):
+        return _Support(self.dim, mins=[(self.label, self.formulas(_psi(self.dim)))])
+
+    def formulas(self, psi):
+        p = sp.Matrix(psi)
+        return [_dot(self.center, psi) + sp.sqrt(sp.expand((p.T * self.quadratic * p)[0, 0]))]
+
+
+class Sgn(Set):
+    """Filippov's set-valued sign Sgn(s(y)) ⊂ [−1, 1]; ``a * Sgn(s)`` is a·Sgn(s) (paper Section 5).
+
+    band: the solver uses the whole interval near s = 0, shrinking smoothly (C¹) to
+    sign(s) at |s| = band (:class:`~qdframe.model.SignTerm`); ``band=float('inf')`` keeps the
+    whole interval everywhere (Filippov's set on its own surface, enforced by the model's
+    surface). One-coordinate blocks only.
+    """
+
+    def __init__(self, switch: Any, band: float = 1e-3) -> None:
+        self.switch = _smooth(switch, "Sgn switch")
+        if not (float(band) >= 0):
+            raise SetStructureError(f"Sgn({self.switch}) band", "a number ≥ 0 (inf allowed)", band)
+        self.band = float(band)
+        self.label = f"Sgn({_s(self.switch)})"
+
+    def support(self):
+        return _Support(1, signs=[(self.label, sp.Integer(1), self.switch, self.band)])
+
+    def polytope(self):
+        raise _NotHere("a Filippov sign term (its set jumps with sign(s))")
+
+    def formulas(self, psi):
+        raise _NotHere("a Filippov sign term (its set jumps with sign(s))")

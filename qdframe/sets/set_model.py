@@ -1,0 +1,125 @@
+"""SetModel and define_model: an InclusionModel written with sets of formulas."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, ClassVar
+
+import sympy as sp
+
+from ..errors import InputError
+from ..model import Cost, InclusionModel, SetBlock, Surface
+from .compiler import Compiled, compile_sets
+
+
+def _names(value: Any) -> tuple[str, ...]:
+    return tuple(value.replace(",", " ").split()) if isinstance(value, str) else tuple(value)
+
+
+class SetModel(InclusionModel):
+    """An :class:`~qdframe.model.InclusionModel` written with sets of formulas.
+
+    Class attributes as for InclusionModel, plus:
+
+    - ``state_names`` / ``control_names`` may be one string, ``"x1 x2"``;
+    - ``default_xT = {"x2": 1.0}`` fixes x_j(T) by name (instead of ``end_indices`` and
+      ``default_end_values``);
+    - ``penalty``: λ of the objective ∫cost + λ·I when there is a running cost.
+
+    Implement :meth:`sets`; optionally :meth:`surface_equations` and :meth:`running_cost`.
+    Each receives the states and then the controls as SymPy symbols, in order. The sets
+    are compiled once per class (on first use), so they may use class attributes
+    (parameters) but not per-instance state.
+    """
+
+    state_names: ClassVar[Any] = ()
+    control_names: ClassVar[Any] = ()
+    default_xT: ClassVar[Mapping[str, float] | None] = None
+    penalty: ClassVar[float] = 1.0
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.state_names = _names(cls.state_names)
+        cls.control_names = _names(cls.control_names)
+        if "default_xT" in cls.__dict__ and cls.default_xT is not None:
+            names = list(cls.state_names)
+            missing = [k for k in cls.default_xT if k not in names]
+            if missing:
+                raise InputError(f"{cls.__name__}.default_xT", f"state names ({', '.join(names)})", ", ".join(missing))
+            cls.end_indices = tuple(names.index(k) for k in cls.default_xT)
+            cls.default_end_values = tuple(float(v) for v in cls.default_xT.values())
+        if not cls.__dict__.get("name"):
+            cls.name = cls.__name__
+        if not cls.__dict__.get("description") and cls.__doc__:
+            cls.description = cls.__doc__.strip().splitlines()[0]
+
+    # -- what an author writes
+    def sets(self, *symbols: sp.Symbol) -> Mapping[Any, Any]:
+        """{x_i: F_i} for x_i' ∈ F_i (a set or a formula), {(x_i, x_j): F} for an S_2 block."""
+        raise NotImplementedError(f"{type(self).__name__}.sets")
+
+    def surface_equations(self, *symbols: sp.Symbol) -> Any:
+        """e(x) = 0 as one formula or a list of formulas in the states; None: no surface."""
+        return None
+
+    def running_cost(self, *symbols: sp.Symbol) -> Any:
+        """The cost integrand (smooth terms, c·|e|, c·Max(…), c·Min(…)); None: no cost."""
+        return None
+
+    # -- the InclusionModel interface
+    @classmethod
+    def symbols(cls) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
+        """The states and controls as real SymPy symbols."""
+        return (tuple(sp.Symbol(n, real=True) for n in cls.state_names),
+                tuple(sp.Symbol(n, real=True) for n in cls.control_names))
+
+    def compiled(self) -> Compiled:
+        cls = type(self)
+        cached = cls.__dict__.get("_compiled_sets")
+        if cached is None:
+            states, controls = cls.symbols()
+            args = states + controls
+            cached = compile_sets(
+                self.sets(*args), states, controls,
+                surface=self.surface_equations(*args), cost=self.running_cost(*args),
+                weight=float(cls.penalty), model=cls.name or cls.__name__,
+            )
+            cls._compiled_sets = cached  # type: ignore[attr-defined]
+        return cached
+
+    def blocks(self) -> tuple[SetBlock, ...]:
+        return self.compiled().blocks
+
+    def surface(self) -> Surface | None:
+        return self.compiled().surface
+
+    def cost(self) -> Cost | None:
+        return self.compiled().cost
+
+
+def define_model(
+    name: str,
+    states: str | Sequence[str],
+    sets: Callable[..., Mapping[Any, Any]],
+    *,
+    x0: Sequence[float],
+    xT: Mapping[str, float] | None = None,
+    T: float = 1.0,
+    controls: str | Sequence[str] = (),
+    surface: Callable[..., Any] | None = None,
+    cost: Callable[..., Any] | None = None,
+    penalty: float = 1.0,
+    description: str = "",
+) -> type[SetModel]:
+    """A SetModel subclass from functions of the symbols (for scripts and notebooks)."""
+    namespace: dict[str, Any] = {
+        "name": name, "description": description, "state_names": states, "control_names": controls,
+        "default_x0": tuple(x0), "default_T": T, "default_xT": dict(xT or {}), "penalty": penalty,
+        "sets": lambda self, *a: sets(*a),
+    }
+    if surface is not None:
+        namespace["surface_equations"] = lambda self, *a: surface(*a)
+    if cost is not None:
+        namespace["running_cost"] = lambda self, *a: cost(*a)
+    cls_name = "".join(part.capitalize() for part in name.replace(".", "-").replace("_", "-").split("-")) or "Model"
+    return type(cls_name, (SetModel,), namespace)
