@@ -3,7 +3,7 @@
     python examples/work_precision.py [--model sliding-mode-terminal] [--nodes 11 101 1001] [--accuracy 1e-3 1e-6]
 
 Solves one model on a ladder of uniform grids and with `accuracy=` targets, and judges
-every result by `qdframe.benchmarks.references.judge`: the max over the result's own points
+every result by `qdframe.bench.references.judge`: the max over the result's own points
 of |x − x_ref|. For a model with one solution x_ref is its closed form; for one whose
 solutions form a set (here, a bounded input to choose) x_ref is the true Filippov motion
 that the result's own input drives, and the error also counts how far that motion misses
@@ -15,8 +15,8 @@ from __future__ import annotations
 import argparse
 
 import qdframe
-from qdframe.benchmarks.references import judge
-from qdframe.benchmarks.sweep import CLAIM_TOL, scheme_velocity
+from qdframe.bench.references import judge
+from qdframe.bench.sweep import CLAIM_TOL, scheme_velocity
 
 
 def main() -> None:

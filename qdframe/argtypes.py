@@ -4,9 +4,12 @@ what was expected (argparse prefixes the option's name)."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from collections.abc import Callable
 
 import numpy as np
+
+from .errors import InputError
 
 
 def integer(minimum: int) -> Callable[[str], int]:
@@ -103,3 +106,28 @@ def key_value(text: str) -> tuple[str, str]:
     if not sep or not key.strip().isidentifier():
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE like mu=1e-8, got {text!r}")
     return key.strip(), value.strip()
+
+
+def tolerances(text: str) -> list[float]:
+    """Comma-separated positive numbers like 1e-3,1e-6, or `none` for an empty ladder."""
+    if text.strip() == "none":
+        return []
+    values = vector(text)
+    if not all(v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers like 1e-3,1e-6 (or none), got {text!r}")
+    return values
+
+
+def writable(field: str, path: str) -> None:
+    """Fail early, with one line, if `path` cannot be written (tries to open it)."""
+    target = Path(path).expanduser()
+    existed = target.exists()
+    try:
+        if target.is_dir():
+            raise IsADirectoryError(path)
+        with open(target, "a"):
+            pass
+    except OSError:
+        raise InputError(field, "a file path in an existing, writable directory", path) from None
+    if not existed:
+        target.unlink(missing_ok=True)

@@ -17,9 +17,10 @@ import numpy as np
 from . import __version__
 from .argtypes import (
     boundary_vector, continuation, finite_float, integer, key_value, names, node_counts, positive_float, vector,
+    writable,
 )
-from .benchmarks.cli import add_run_parser, main_run
 from .authoring.check import add_check_parser, main_check
+from .bench.cli import add_bench_parser, main_bench
 from .errors import InputError, QdframeError
 from .registry import GROUPS, KIND_LABEL, PluginWarning, available
 
@@ -92,41 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--json", metavar="FILE", help="write the trajectory as JSON")
     simulate.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
-    bench = commands.add_parser("bench", help="benchmarks")
-    benches = bench.add_subparsers(dest="bench_command", required=True, parser_class=_Parser)
-    bench_directions = benches.add_parser(
-        "directions", help="time every installed min-norm direction backend against native"
-    )
-    bench_directions.add_argument("--nodes", type=integer(2), default=1001, help="grid nodes N ≥ 2 (default 1001)")
-    bench_directions.add_argument("--repeat", type=integer(1), default=3, help="timed passes R ≥ 1 (default 3)")
-    bench_directions.add_argument("--directions", metavar="NAME,NAME,..", help="only these directions (default: all installed)")
-    bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
-    bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    benches.add_parser("hard", help="the hard-case suite: what each case measured")
-    bench_friction = benches.add_parser(
-        "friction", help="the stick/slide/switch suite: status, iterations, time, strict residual, error and order per N"
-    )
-    bench_friction.add_argument("--nodes", type=node_counts, default=(101, 1001, 10001), metavar="N,N,..",
-                                help="grids (default 101,1001,10001)")
-    bench_friction.add_argument("--schemes", type=names, metavar="NAME,NAME,..",
-                                help="schemes (default: each model's own)")
-    bench_friction.add_argument("--models", type=names, metavar="NAME,NAME,..", help="models (default: the suite)")
-    bench_accuracy = benches.add_parser("accuracy", help="nodes and time to a true error: uniform grids against accuracy=")
-    bench_accuracy.add_argument("--models", type=names, metavar="NAME,NAME,..",
-                                help="models (default: every one with an exact solution)")
-    bench_accuracy.add_argument("--targets", type=vector, default=(1e-4, 1e-6), metavar="E,E,..",
-                                help="true errors to reach (default 1e-4,1e-6)")
-    bench_scale = benches.add_parser(
-        "scale", help="seconds per iteration against N, against the floor (one KKT factorization + one model "
-        "evaluation), the fitted exponent and peak memory")
-    bench_scale.add_argument("--paths", type=names, metavar="NAME,NAME,..",
-                             help="directions, each with its own line search (default gauss-newton,native)")
-    bench_scale.add_argument("--models", type=names, metavar="NAME,NAME,..",
-                             help="models (default paper-7.1,paper-7.2,paper-7.3)")
-    bench_scale.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 1001,10001,100001)")
-    bench_scale.add_argument("--iterations", type=integer(1), default=3, help="iterations timed per cell (default 3)")
-    bench_scale.add_argument("--json", metavar="FILE", help="write the cells and exponents as JSON")
-    add_run_parser(benches)
+    add_bench_parser(commands, _Parser)
 
     add_check_parser(commands)
     return parser
@@ -157,9 +124,7 @@ def _main(argv: list[str], debug: bool) -> int:
         if args.command == "simulate":
             return _simulate(args)
         if args.command == "bench":
-            commands = {"run": main_run, "hard": lambda _args: _bench_hard(), "directions": _bench_directions,
-                        "friction": _bench_friction, "accuracy": _bench_accuracy, "scale": _bench_scale}
-            return commands[args.bench_command](args)
+            return main_bench(args, [a for a in argv if a != "--debug"])
         if args.command == "check-model":
             return main_check(args)
         return _solve(args)
@@ -191,7 +156,7 @@ def _list(args: argparse.Namespace) -> int:
         if args.json == "-":
             print(text)
         else:
-            _writable("--json", args.json)
+            writable("--json", args.json)
             Path(args.json).write_text(text + "\n")
         return 0
     for kind, entries in listing.items():
@@ -209,7 +174,7 @@ def _solve(args: argparse.Namespace) -> int:
     to_stdout = args.json == "-"  # the JSON alone on stdout; the summary goes to stderr
     for flag in ("json", "plot"):
         if getattr(args, flag) and not (flag == "json" and to_stdout):
-            _writable(f"--{flag}", getattr(args, flag))
+            writable(f"--{flag}", getattr(args, flag))
     overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic}
     model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
     direction = with_options(make_direction(args.direction), dict(args.option or ()))
@@ -266,7 +231,7 @@ def _simulate(args: argparse.Namespace) -> int:
     from .simulate import simulate
 
     if args.json:
-        _writable("--json", args.json)
+        writable("--json", args.json)
     model = load_model(args.model, x0=args.x0)
     run = simulate(model, args.t_start, args.t_end, args.x0, dt=args.dt, controls=args.u)
     if args.json:
@@ -276,64 +241,6 @@ def _simulate(args: argparse.Namespace) -> int:
         print(f"{run.model}: t = {run.t[0]:g} → {run.t[-1]:g}, {len(run.t) - 1} steps of {run.dt:.3g}")
         print("x(T1) = " + ", ".join(f"{n} {v:.6f}" for n, v in zip(names, run.x[-1])))
     return 0
-
-
-def _bench_directions(args: argparse.Namespace) -> int:
-    from .bench import bench_directions, format_table, write_json
-
-    if args.json:
-        _writable("--json", args.json)
-    names = None
-    if args.directions is not None:
-        names = [name.strip() for name in args.directions.split(",") if name.strip()]
-        if not names:
-            raise InputError("--directions", "comma-separated direction names like native,osqp", args.directions)
-    say = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
-    report = bench_directions(args.nodes, repeat=args.repeat, names=names, progress=say)
-    if args.json:
-        write_json(report, args.json)
-    if not args.quiet:
-        print(format_table(report))
-    failed = [row["direction"] for row in report["rows"] if row["failures"]]
-    if failed:
-        print(f"qdframe: error: failed calls by {', '.join(failed)} (see the table)", file=sys.stderr)
-    return 1 if failed else 0
-
-
-def _bench_friction(args: argparse.Namespace) -> int:
-    from .benchmarks import friction
-
-    rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,), progress=True)
-    print(friction.table(rows))
-    return 0  # a measurement: the table says which rows are not solved
-
-
-def _bench_accuracy(args: argparse.Namespace) -> int:
-    from .benchmarks import accuracy
-
-    print(accuracy.table(accuracy.run(args.models, args.targets, progress=True)))
-    return 0  # a measurement: the table says which targets are not met
-
-
-def _bench_scale(args: argparse.Namespace) -> int:
-    from .benchmarks import scale
-
-    if args.json:
-        _writable("--json", args.json)
-    cells = scale.run(args.paths or scale.PATHS, args.models or scale.MODELS, args.nodes or scale.NODES,
-                      args.iterations, progress=lambda text: print(text, file=sys.stderr, flush=True))
-    if args.json:
-        Path(args.json).write_text(json.dumps(scale.to_json(cells), indent=1) + "\n")
-    print(scale.table(cells))
-    return 1 if any(cell.error for cell in cells) else 0
-
-
-def _bench_hard() -> int:
-    from . import hard
-
-    results = hard.run(progress=True)
-    print(hard.table(results))
-    return 0 if all(r.passed for r in results) else 1
 
 
 def _progress_printer(budget: int):
@@ -349,21 +256,6 @@ def _progress_printer(budget: int):
         )
 
     return show
-
-
-def _writable(field: str, path: str) -> None:
-    """Fail early, with one line, if `path` cannot be written (tries to open it)."""
-    target = Path(path).expanduser()
-    existed = target.exists()
-    try:
-        if target.is_dir():
-            raise IsADirectoryError(path)
-        with open(target, "a"):
-            pass
-    except OSError:
-        raise InputError(field, "a file path in an existing, writable directory", path) from None
-    if not existed:
-        target.unlink(missing_ok=True)
 
 
 if __name__ == "__main__":

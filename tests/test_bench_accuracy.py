@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from qdframe.benchmarks.accuracy import AccuracyRow, exact_models, ladder_nodes, run, table
+from qdframe.bench.accuracy import AccuracyRow, exact_models, ladder_nodes, run, table
 from qdframe.cli import main
 
 

@@ -1,8 +1,7 @@
 """`qdframe bench run` (issues 7, 15): sweep files, resume, reference errors, work-precision
 metrics, dask, peers.
 
-Runs go through `python -m qdframe.benchmarks run` (`qdframe.benchmarks.cli.main`), the
-same parser and `main_run` that `qdframe bench run` wires in. Timings are never asserted.
+Runs go through `qdframe bench run` (:func:`qdframe.cli.main`). Timings are never asserted.
 """
 
 from __future__ import annotations
@@ -17,10 +16,10 @@ import pytest
 
 from qdframe.cli import main as qdframe_main
 from qdframe.descent import make_direction
-from qdframe.benchmarks import peers as bench_peers
-from qdframe.benchmarks import sweep as bench_sweep
-from qdframe.benchmarks.report import ratios, shifted_geometric_mean, summarize, time_to
-from qdframe.benchmarks.sweep import Case, claim, read_csv, run_case
+from qdframe.bench import peers as bench_peers
+from qdframe.bench import sweep as bench_sweep
+from qdframe.bench.report import ratios, shifted_geometric_mean, summarize, time_to
+from qdframe.bench.sweep import Case, claim, read_csv, run_case
 
 TINY = ["run", "--models", "paper-7.1,coulomb-rest-to-rest", "--directions", "gauss-newton,native",
         "--nodes", "11", "--accuracy", "none", "--max-iter", "15", "--quiet"]

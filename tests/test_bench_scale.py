@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from qdframe.benchmarks import scale
+from qdframe.bench import scale
 from qdframe.cli import main
 
 

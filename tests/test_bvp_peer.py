@@ -1,4 +1,4 @@
-"""The solve_bvp peer (qdframe.benchmarks.bvp_peer): its statements and what they cost.
+"""The solve_bvp peer (qdframe.bench.bvp_peer): its statements and what they cost.
 
 Measured (scipy 1.17.1, ε = tol, 11-node uniform start, x0 held constant, max_nodes 1e5):
 
@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 import pytest
 
-from qdframe.benchmarks.bvp_peer import BVP_MODELS, STICK_SLIP_FRICTION, STICK_SLIP_NAME, boundary_conditions, \
+from qdframe.bench.bvp_peer import BVP_MODELS, STICK_SLIP_FRICTION, STICK_SLIP_NAME, boundary_conditions, \
     run_solve_bvp, statement
 from qdframe.descent import load_model
 from qdframe.errors import InputError

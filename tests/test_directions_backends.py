@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.bench import degenerate_instances
+from qdframe.bench.directions import degenerate_instances
 from qdframe.cli import main
 from qdframe.directions import qp as qp_module
 from qdframe.directions.native import NativeDirection

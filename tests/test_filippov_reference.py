@@ -1,4 +1,4 @@
-"""The independent Filippov integrator (qdframe.benchmarks.filippov) against closed forms.
+"""The independent Filippov integrator (qdframe.bench.filippov) against closed forms.
 
 Every model with an exact solution that `statement` covers: the reference motion agrees
 with it to 1e-9 at 2001 times and its mode changes happen at the model's switch times.
@@ -13,7 +13,7 @@ import pytest
 from scipy.optimize import brentq
 
 import qdframe
-from qdframe.benchmarks.filippov import FilippovError, FilippovSystem, integrate, reference, statement
+from qdframe.bench.filippov import FilippovError, FilippovSystem, integrate, reference, statement
 from qdframe.models.friction import FRICTION_MODELS
 from qdframe.models.masses import Paper73
 

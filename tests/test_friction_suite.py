@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.benchmarks.friction import SUITE, run_suite
+from qdframe.bench.friction import SUITE, run_suite
 from qdframe.models.friction import FRICTION_MODELS
 
 NODES = (101, 1001, 10001)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from qdframe import hard
+from qdframe.bench import hard
 
 
 @pytest.mark.parametrize("case", hard.CASES, ids=lambda case: case.__name__)

@@ -14,6 +14,10 @@ MOVED = [
      ("BAND", "BENCH_MODELS", "SLIDING_A", "SLIDING_B", "SLIDING_TARGET", "SLIDING_X0", "CoulombRestToRest",
       "SlidingModeTerminal")),
     ("qdframe.model", "qdframe.authoring.pieces", ("abs_sum",)),
+    ("qdframe.hard", "qdframe.bench.hard", ("CASES", "HardCase", "run", "table")),
+    ("qdframe.bench", "qdframe.bench.directions",  # the old module qdframe.bench is the package's .directions
+     ("BenchRow", "Instance", "PAPER_MODELS", "degenerate_instances", "installed_directions", "paper_instances")),
+    ("qdframe.benchmarks", "qdframe.bench", ("Case", "SUITES", "plan", "run_sweep", "write_report")),
 ]
 
 
@@ -36,3 +40,18 @@ def test_every_name_of_the_set_language_imports_from_qdframe_sets():
     # the names qdframe.sets had as one module, now re-exported by the package
     for name in [*qdframe.sets.__all__, "Set", "Hull", "Intersection", "Scaled", "Sum", "as_set", "Compiled"]:
         assert getattr(qdframe.sets, name) is not None, name
+
+
+def test_the_old_benchmark_modules_are_the_new_ones():
+    with pytest.warns(DeprecationWarning, match="qdframe.benchmarks moved to qdframe.bench"):
+        import qdframe.benchmarks  # noqa: F401  (first import: warns)
+
+        importlib.reload(qdframe.benchmarks)
+    import qdframe.bench.sweep
+    import qdframe.benchmarks.sweep
+
+    assert qdframe.benchmarks.sweep is qdframe.bench.sweep
+    # the names qdframe.bench had as one module (bench directions) are still there
+    import qdframe.bench
+
+    assert qdframe.bench.bench_directions is qdframe.bench.directions.bench_directions

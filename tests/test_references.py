@@ -1,4 +1,4 @@
-"""The yardstick of `qdframe bench run` (qdframe/benchmarks/references.py): each kind of
+"""The yardstick of `qdframe bench run` (qdframe/bench/references.py): each kind of
 reference against numbers worked out by hand."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.benchmarks.references import EVENTS, EXACT, PROJECTION, judge, kind
+from qdframe.bench.references import EVENTS, EXACT, PROJECTION, judge, kind
 
 
 def _bang_bang(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""The replay reference (qdframe.benchmarks.replay): the nearest velocity against brute
+"""The replay reference (qdframe.bench.replay): the nearest velocity against brute
 force, and replays of exact, solved and perturbed trajectories."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from scipy.optimize import minimize
 
 import qdframe
-from qdframe.benchmarks.replay import nearest_velocity, replay
+from qdframe.bench.replay import nearest_velocity, replay
 from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.grid import Grid

@@ -1,32 +1,21 @@
-"""Comparative benchmarks: `qdframe bench run` (work-precision against references, peers, dask).
-
-* :mod:`.sweep` — the cases of a sweep (each solver's accuracy knob), one run → one row,
-  the result files, executors;
-* :mod:`.references` — the one yardstick: a row's error against the model's reference;
-* :mod:`.filippov` — an independent event-driven Filippov integrator (references, replays);
-* :mod:`.replay` — the true motion rebuilt from a trajectory where the solution is not unique;
-* :mod:`.report` — work-precision diagrams, times to an error, qpbenchmark-style metrics, report.md;
-* :mod:`.models` — two problems qdframe and nosnoc can both state;
-* :mod:`.peers` — nosnoc; :mod:`.bvp_peer` — scipy's solve_bvp;
-* :mod:`.cli` — ``add_run_parser`` / ``main_run`` for ``qdframe bench run``.
+"""Deprecated: the benchmarks moved to :mod:`qdframe.bench` (one package for every
+`qdframe bench` subcommand). ``import qdframe.benchmarks.<module>`` and the names of this
+package keep working, with a DeprecationWarning, until the next release.
 """
 
-from .cli import add_run_parser, main_run
-from .report import shifted_geometric_mean, summarize, write_report
-from .sweep import Case, Plan, ResultStore, SUITES, execute, plan, run_case, run_sweep
+import importlib
+import sys
+import warnings
 
-__all__ = [
-    "Case",
-    "Plan",
-    "ResultStore",
-    "SUITES",
-    "add_run_parser",
-    "execute",
-    "main_run",
-    "plan",
-    "run_case",
-    "run_sweep",
-    "shifted_geometric_mean",
-    "summarize",
-    "write_report",
-]
+from ..deprecation import moved
+
+_MODULES = ("accuracy", "bvp_peer", "cli", "filippov", "friction", "peers", "references", "replay", "report", "scale",
+            "sweep")
+for _name in _MODULES:  # the old module paths name the new modules (the same objects)
+    sys.modules[f"{__name__}.{_name}"] = globals()[_name] = importlib.import_module(f"qdframe.bench.{_name}")
+warnings.warn("qdframe.benchmarks moved to qdframe.bench; import from there (qdframe.benchmarks goes in the next "
+              "release)", DeprecationWarning, stacklevel=2)
+
+__all__ = ["Case", "Plan", "ResultStore", "SUITES", "execute", "plan", "run_case", "run_sweep",
+           "shifted_geometric_mean", "summarize", "write_report"]
+__getattr__ = moved(__name__, "qdframe.bench", __all__)

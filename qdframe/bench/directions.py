@@ -31,13 +31,13 @@ from typing import Callable
 
 import numpy as np
 
-from .descent import DescentOptions, descend, load_model, make_line_search
-from .directions.base import MinNormDirection
-from .directions.native import NativeDirection
-from .errors import BackendError, QdframeError
-from .functional import Functional
-from .grid import Grid
-from .registry import available
+from ..descent import DescentOptions, descend, load_model, make_line_search
+from ..directions.base import MinNormDirection
+from ..directions.native import NativeDirection
+from ..errors import BackendError, QdframeError
+from ..functional import Functional
+from ..grid import Grid
+from ..registry import available
 
 PAPER_MODELS = ("paper-7.1", "paper-7.2")
 
@@ -117,7 +117,7 @@ def installed_directions(names: list[str] | None = None) -> tuple[dict[str, MinN
 
     A backend whose package is missing is skipped (with the reason); an unknown name in
     `names` raises UnknownNameError."""
-    from .descent import make_direction
+    from ..descent import make_direction
 
     explicit = names is not None
     if names is None:
@@ -155,7 +155,7 @@ def _expand(prefix: str) -> list[str]:
             import qpsolvers
         except ImportError:
             return [prefix + "daqp"]  # reported as skipped, with the pip command
-        from .directions.qpsolvers_backend import offered_solvers
+        from ..directions.qpsolvers_backend import offered_solvers
 
         return [prefix + name for name in offered_solvers(qpsolvers)]
     return []

@@ -1,0 +1,43 @@
+"""Benchmarks: every `qdframe bench` subcommand, and the reference solutions they judge by.
+
+* :mod:`.cli` — the `qdframe bench` subcommands' arguments (``add_bench_parser``, ``main_bench``);
+* :mod:`.directions` — `bench directions`: speed and accuracy of the min-norm QP backends;
+* :mod:`.hard` — `bench hard`: the hard-case suite;
+* :mod:`.friction` — `bench friction`: the stick/slide/switch suite per N;
+* :mod:`.accuracy` — `bench accuracy`: nodes and time to a true error, uniform against `accuracy=`;
+* :mod:`.scale` — `bench scale`: seconds per iteration against N, the floor and memory;
+* `bench run`, work-precision against references:
+  :mod:`.sweep` (the cases, one run → one row, executors), :mod:`.references` (a row's
+  error against the model's reference), :mod:`.filippov` (an independent event-driven
+  Filippov integrator), :mod:`.replay` (the true motion rebuilt where the solution is not
+  unique), :mod:`.report` (diagrams, times to an error, report.md), :mod:`.peers`
+  (nosnoc) and :mod:`.bvp_peer` (scipy's solve_bvp).
+
+The models the benchmarks pose live with every other built-in model, in :mod:`qdframe.models`.
+"""
+
+from ..deprecation import moved
+from .directions import bench_directions, format_table, write_json
+from .report import shifted_geometric_mean, summarize, write_report
+from .sweep import SUITES, Case, Plan, ResultStore, execute, plan, run_case, run_sweep
+
+__all__ = [
+    "Case",
+    "Plan",
+    "ResultStore",
+    "SUITES",
+    "bench_directions",
+    "execute",
+    "format_table",
+    "plan",
+    "run_case",
+    "run_sweep",
+    "shifted_geometric_mean",
+    "summarize",
+    "write_json",
+    "write_report",
+]
+
+# the rest of the old module qdframe.bench (now .directions): forwarded, with a warning
+__getattr__ = moved(__name__, "qdframe.bench.directions", ("BenchRow", "Instance", "PAPER_MODELS", "degenerate_instances",
+                                                           "installed_directions", "paper_instances"))

@@ -1,0 +1,213 @@
+"""`qdframe bench …`: every benchmark subcommand, its arguments and what it runs.
+
+``add_bench_parser(commands, parser_class)`` adds ``bench`` and its subcommands
+(directions, hard, friction, accuracy, scale, run) to the ``qdframe`` parser, and
+``main_bench(args, argv)`` runs the one chosen. Argument types and checks are the
+command line's own (:mod:`qdframe.argtypes`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..argtypes import integer, names, node_counts, positive_float, tolerances, vector, writable
+from ..errors import InputError
+from .sweep import SUITES
+
+
+def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add `bench` and its subcommands to the subparsers `commands` of `qdframe`."""
+    bench = commands.add_parser("bench", help="benchmarks")
+    benches = bench.add_subparsers(dest="bench_command", required=True, parser_class=parser_class)
+    bench_directions = benches.add_parser(
+        "directions", help="time every installed min-norm direction backend against native"
+    )
+    bench_directions.add_argument("--nodes", type=integer(2), default=1001, help="grid nodes N ≥ 2 (default 1001)")
+    bench_directions.add_argument("--repeat", type=integer(1), default=3, help="timed passes R ≥ 1 (default 3)")
+    bench_directions.add_argument("--directions", type=names, metavar="NAME,NAME,..", help="only these directions (default: all installed)")
+    bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
+    bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    benches.add_parser("hard", help="the hard-case suite: what each case measured")
+    bench_friction = benches.add_parser(
+        "friction", help="the stick/slide/switch suite: status, iterations, time, strict residual, error and order per N"
+    )
+    bench_friction.add_argument("--nodes", type=node_counts, default=(101, 1001, 10001), metavar="N,N,..",
+                                help="grids (default 101,1001,10001)")
+    bench_friction.add_argument("--schemes", type=names, metavar="NAME,NAME,..",
+                                help="schemes (default: each model's own)")
+    bench_friction.add_argument("--models", type=names, metavar="NAME,NAME,..", help="models (default: the suite)")
+    bench_accuracy = benches.add_parser("accuracy", help="nodes and time to a true error: uniform grids against accuracy=")
+    bench_accuracy.add_argument("--models", type=names, metavar="NAME,NAME,..",
+                                help="models (default: every one with an exact solution)")
+    bench_accuracy.add_argument("--targets", type=vector, default=(1e-4, 1e-6), metavar="E,E,..",
+                                help="true errors to reach (default 1e-4,1e-6)")
+    bench_scale = benches.add_parser(
+        "scale", help="seconds per iteration against N, against the floor (one KKT factorization + one model "
+        "evaluation), the fitted exponent and peak memory")
+    bench_scale.add_argument("--paths", type=names, metavar="NAME,NAME,..",
+                             help="directions, each with its own line search (default gauss-newton,native)")
+    bench_scale.add_argument("--models", type=names, metavar="NAME,NAME,..",
+                             help="models (default paper-7.1,paper-7.2,paper-7.3)")
+    bench_scale.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 1001,10001,100001)")
+    bench_scale.add_argument("--iterations", type=integer(1), default=3, help="iterations timed per cell (default 3)")
+    bench_scale.add_argument("--json", metavar="FILE", help="write the cells and exponents as JSON")
+    _add_run_parser(benches)
+
+
+def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
+    """Add `run` to the subparsers of `qdframe bench`; returns its parser."""
+    run = bench_subparsers.add_parser(
+        "run",
+        help="work-precision sweep: each solver's accuracy knob, every run judged against a reference solution",
+        description="Run a sweep and write results.csv, results.json (with histories), work-precision diagrams "
+        "and report.md into --out, row by row (--resume continues an interrupted sweep). Every run's error is "
+        "measured against the model's reference solution on the run's own time grid.",
+    )
+    run.add_argument("--suite", choices=sorted(SUITES), default="quick",
+                     help="quick (CI, under 2 minutes): 5 models, gauss-newton to N = 161 and accuracy= 1e-3, 1e-6, "
+                     "native to N = 41; standard: the paper's, plugin, friction, peer and T = 100 models, "
+                     "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
+                     "and line search")
+    run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")
+    run.add_argument("--directions", type=names, metavar="NAME,..", help="only these directions (default: the suite's)")
+    run.add_argument("--line-searches", type=names, metavar="NAME,..",
+                     help="every direction with each of these (default: each direction's own; full: all)")
+    run.add_argument("--nodes", type=node_counts, metavar="N,..", help="every solver's grids (default: the suite's)")
+    run.add_argument("--accuracy", type=tolerances, metavar="E,..",
+                     help="gauss-newton's accuracy= targets (default: the suite's; 'none' for none)")
+    run.add_argument("--bvp-tols", type=tolerances, metavar="E,..",
+                     help="solve_bvp's tol ladder (default: the suite's; 'none' for none)")
+    run.add_argument("--peers", action="store_true",
+                     help="also run the peers on the models they can state: nosnoc (Filippov problems with "
+                     "an input) and scipy's solve_bvp (the friction and sliding models)")
+    run.add_argument("--executor", choices=("local", "dask"), default="local",
+                     help="local: one run after another here; dask: on dask.distributed (default local)")
+    run.add_argument("--scheduler", metavar="ADDRESS",
+                     help="with --executor dask: an existing scheduler (default: a LocalCluster)")
+    run.add_argument("--workers", type=integer(1), help="with --executor dask and no --scheduler: LocalCluster workers (default: CPUs)")
+    run.add_argument("--max-iter", type=integer(0), help="iteration budget per run (default: the suite's)")
+    run.add_argument("--time-limit", type=positive_float, metavar="SECONDS", help="wall-time limit per run (default: the suite's)")
+    run.add_argument("--resume", action="store_true", help="keep the rows already in --out and run the rest")
+    run.add_argument("--out", default="qdframe-bench", metavar="DIR", help="output directory (default ./qdframe-bench)")
+    run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return run
+
+
+def main_bench(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """Run the `qdframe bench` subcommand of `args`; `argv` is the command line (for reports)."""
+    if args.bench_command == "run":
+        return _run(args, argv)
+    return {"directions": _directions, "hard": _hard, "friction": _friction, "accuracy": _accuracy,
+            "scale": _scale}[args.bench_command](args)
+
+
+def _say(quiet: bool = False):
+    """Progress lines on stderr (None when quiet)."""
+    return None if quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+
+
+def _directions(args: argparse.Namespace) -> int:
+    from .directions import bench_directions, format_table, write_json
+
+    if args.json:
+        writable("--json", args.json)
+    report = bench_directions(args.nodes, repeat=args.repeat, names=args.directions, progress=_say(args.quiet))
+    if args.json:
+        write_json(report, args.json)
+    if not args.quiet:
+        print(format_table(report))
+    failed = [row["direction"] for row in report["rows"] if row["failures"]]
+    if failed:
+        print(f"qdframe: error: failed calls by {', '.join(failed)} (see the table)", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _hard(args: argparse.Namespace) -> int:
+    from . import hard
+
+    results = hard.run(progress=True)
+    print(hard.table(results))
+    return 0 if all(r.passed for r in results) else 1
+
+
+def _friction(args: argparse.Namespace) -> int:
+    from . import friction
+
+    rows = friction.run_suite(args.models or friction.SUITE, args.nodes, args.schemes or (None,), progress=True)
+    print(friction.table(rows))
+    return 0  # a measurement: the table says which rows are not solved
+
+
+def _accuracy(args: argparse.Namespace) -> int:
+    from . import accuracy
+
+    print(accuracy.table(accuracy.run(args.models, args.targets, progress=True)))
+    return 0  # a measurement: the table says which targets are not met
+
+
+def _scale(args: argparse.Namespace) -> int:
+    from . import scale
+
+    if args.json:
+        writable("--json", args.json)
+    cells = scale.run(args.paths or scale.PATHS, args.models or scale.MODELS, args.nodes or scale.NODES,
+                      args.iterations, progress=_say())
+    if args.json:
+        Path(args.json).write_text(json.dumps(scale.to_json(cells), indent=1) + "\n")
+    print(scale.table(cells))
+    return 1 if any(cell.error for cell in cells) else 0
+
+
+def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    from .references import cross_check
+    from .report import ratio_table, summary_table, time_table, write_report
+    from .sweep import plan, run_sweep
+
+    if args.scheduler and args.executor != "dask":
+        raise InputError("--scheduler", "to be used with --executor dask", args.scheduler)
+    sweep = plan(
+        suite=args.suite,
+        models=args.models,
+        directions=args.directions,
+        line_searches=args.line_searches,
+        nodes=args.nodes,
+        peers=args.peers,
+        max_iter=args.max_iter,
+        time_limit_s=args.time_limit,
+        accuracy=args.accuracy,
+        bvp_tols=args.bvp_tols,
+    )
+    say = _say(args.quiet)
+    command = shlex.join(["qdframe", *argv])
+    if say:
+        models = sweep.settings["models"]
+        say(f"{len(sweep.cases)} runs: {len(models)} models × directions {', '.join(sweep.settings['directions'])} "
+            f"× N = {', '.join(map(str, sweep.settings['nodes']))}"
+            + (f" and accuracy= {', '.join(f'{e:g}' for e in sweep.settings['accuracy'])}" if sweep.settings['accuracy'] else "")
+            + (" + peers" if args.peers else ""))
+        for name, why in sweep.skipped.items():
+            say(f"skipped direction {name}: {why}")
+        if args.peers and not any(case.peer for case in sweep.cases):
+            say("--peers: no model of the sweep is one the peers can state")
+    try:
+        outcome = run_sweep(sweep, args.out, resume=args.resume, executor=args.executor, scheduler=args.scheduler,
+                            workers=args.workers, progress=say, command=command)
+    except KeyboardInterrupt:
+        print(f"qdframe: interrupted; the finished runs are in {args.out}: add --resume to continue",
+              file=sys.stderr)
+        return 130
+    references = {name: cross_check(name) for name in sorted({r["model"] for r in outcome.rows})}
+    paths = write_report(outcome.rows, outcome.meta, args.out, seconds=outcome.seconds, references=references)
+    if not args.quiet:
+        print(time_table(outcome.rows))
+        if any(case.peer for case in sweep.cases):
+            print("\n" + ratio_table(outcome.rows))
+        print("\n" + summary_table(outcome.rows, sweep.settings["time_limit_s"]))
+        print(f"\n{outcome.ran} runs in {outcome.seconds:.1f} s ({outcome.resumed} resumed); "
+              f"{paths['report']}, {paths['work_precision']}, results.csv, results.json in {args.out}")
+    return 0
