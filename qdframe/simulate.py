@@ -5,7 +5,8 @@ a·Sgn(s) enters F as the point a·λ of Filippov's set, its selection λ an unk
 the natural map λ = clip(λ + c·s(x_{k+1}), −1, 1) (as `Functional.selection_residual`):
 λ = sign s off the surface, and on it s = 0 exactly with λ ∈ [−1, 1] the equivalent
 control. Sliding and sticking are exact roots, without a band or event location; terms
-with the same switch share one λ. Of an interval [lo_i, hi_i] the simulator takes the
+with the same switch share one λ. c = 1/|∂s/∂λ| through the step (Alart–Curnier's
+scaling), so that the result does not depend on how s is scaled. Of an interval [lo_i, hi_i] the simulator takes the
 velocity nearest the previous one, z_i = clip(z_i^prev, lo_i, hi_i), so a singleton set
 is followed exactly and an interval only as far as it must.
 
@@ -30,8 +31,9 @@ from .functional import Functional
 from .grid import Grid
 from .model import InclusionModel
 
-SCALE = 1.0  # c in the natural map: small enough that a step onto a surface lands inside (−1, 1)
-TOL = 1e-12  # a step is solved when |z − target| ≤ TOL·(1 + |z_prev|) and |λ − clip(λ + c·s)| ≤ TOL
+SCALE_FLOOR = 1e-12  # c ≤ 1e12 where a selection hardly moves its own switch
+TOL = 1e-12  # a step is solved when |z − target| ≤ TOL·(1 + |z_prev|) and |λ − clip(λ + c·s)| ≤ TOL,
+ROUNDING = 8 * np.finfo(float).eps  # or within what x_j's rounding moves them by
 WINDOW_MIN, WINDOW_MAX = 16, 4096  # steps per window: doubled after a window that converged whole
 WINDOW_ITERATIONS = 8  # Newton iterations per window before its converged leading steps are kept
 
@@ -168,10 +170,12 @@ class _Stepper:
         columns = np.r_[:n, f.args : f.width]  # x and λ (u is given)
         return lo, hi, dlo[:, :, columns], dhi[:, :, columns]
 
-    def residual(self, x0: np.ndarray, z0: np.ndarray, z: np.ndarray, lam: np.ndarray, u: np.ndarray):
+    def residual(self, x0: np.ndarray, z0: np.ndarray, z: np.ndarray, lam: np.ndarray, u: np.ndarray,
+                 scale: np.ndarray | None = None):
         """The residual (W, n + p) of the steps z (W, n), λ (W, p) after x0 with velocity z0; whether
-        each step is solved (W,); and the Jacobian's blocks: on step j's own unknowns (W, n + p, n + p)
-        and the diagonals on x_{j−1} and x_{j−2} (W, n)."""
+        each step is solved (W,); the Jacobian's blocks: on step j's own unknowns (W, n + p, n + p)
+        and the diagonals on x_{j−1} and x_{j−2} (W, n); and c (W, p), the natural map's scale
+        (given, or 1/|∂s/∂λ| through the step at this iterate: :meth:`scales`)."""
         n, dt = self.n, self.dt
         x = x0 + np.cumsum(dt * z, axis=0)  # as the steps accumulate it: x_j = x_{j−1} + Δt·z_j
         y = np.concatenate([x, u], axis=1)
@@ -182,23 +186,38 @@ class _Stepper:
         lower = ~upper & (previous <= lo)
         keep = ~upper & ~lower  # z_j = z_{j−1}, strictly inside the interval
         r_z = z - np.where(upper, hi, np.where(lower, lo, previous))
-        moved = lam + SCALE * s
-        inside = np.abs(moved) < 1.0  # the clip is the identity there
-        r_lam = lam - np.clip(moved, -1.0, 1.0)
-        solved = (np.max(np.abs(r_z), axis=1) <= TOL * (1.0 + np.max(np.abs(previous), axis=1))) & (
-            np.max(np.abs(r_lam), axis=1, initial=0.0) <= TOL
-        )
         slope = np.where(upper[:, :, None], dhi, np.where(lower[:, :, None], dlo, 0.0))  # ∂target/∂(x, λ)
         own = np.zeros((z.shape[0], self.size, self.size))
         own[:, :n] = -slope
         own[:, :n, :n] += np.eye(n) / dt
-        own[:, n:, :n] = -SCALE * inside[:, :, None] * ds
+        if scale is None:
+            scale = self.scales(own, ds)
+        moved = lam + scale * s
+        inside = np.abs(moved) < 1.0  # the clip is the identity there
+        r_lam = lam - np.clip(moved, -1.0, 1.0)
+        # solved to TOL, or to the rounding of x_j (ε|x_j| moves the target and c·s by as much)
+        noise = ROUNDING * np.abs(x)[:, None, :]
+        solved = np.all(np.abs(r_z) <= TOL * (1.0 + np.max(np.abs(previous), axis=1))[:, None]
+                        + np.sum(np.abs(slope[:, :, :n]) * noise, axis=2), axis=1)
+        solved &= np.all(np.abs(r_lam) <= TOL + scale * np.sum(np.abs(ds) * noise, axis=2), axis=1)
+        own[:, n:, :n] = -(scale * inside)[:, :, None] * ds
         own[:, n:, n:] = np.eye(self.p) * (1.0 - inside[:, None, :])
         back1 = -(1.0 + keep) / dt  # z_j − z_{j−1}·keep with z_j = (x_j − x_{j−1})/Δt
         back1[0] = 0.0
         back2 = keep / dt
         back2[:2] = 0.0
-        return np.concatenate([r_z, r_lam], axis=1), solved, own, back1, back2
+        return np.concatenate([r_z, r_lam], axis=1), solved, own, back1, back2, scale
+
+    def scales(self, own: np.ndarray, ds: np.ndarray) -> np.ndarray:
+        """c = 1/|∂s_k/∂λ_k| (W, p), s's response to its selection through the step
+        (Alart–Curnier's scaling): then λ + c·s is the selection that puts s near 0, so a step
+        onto a surface lands inside (−1, 1) and slides rather than bouncing between ±1."""
+        n = self.n
+        try:
+            response = ds @ np.linalg.solve(own[:, :n, :n], -own[:, :n, n:])  # ∂s/∂λ (W, p, p)
+        except np.linalg.LinAlgError:
+            return np.ones((own.shape[0], self.p))
+        return 1.0 / np.maximum(np.abs(np.diagonal(response, axis1=1, axis2=2)), SCALE_FLOOR)
 
     def newton_step(self, own: np.ndarray, back1: np.ndarray, back2: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The Newton change (W, n + p) of (x, λ) per step: the banded system solved once."""
@@ -224,11 +243,11 @@ class _Stepper:
         """Semismooth Newton on the next W steps at once, from z and λ held: the number of
         leading steps solved, and the last iterate's z (W, n) and λ (W, p)."""
         z, lam = np.tile(z0, (u.shape[0], 1)), np.tile(lam0, (u.shape[0], 1))
-        best = 0, z, lam
+        best, scale = (0, z, lam), None
         for iteration in range(WINDOW_ITERATIONS + 1):
             try:
                 with np.errstate(all="ignore"):  # a wild iterate's overflow: its steps are not kept
-                    r, solved, own, back1, back2 = self.residual(x0, z0, z, lam, u)
+                    r, solved, own, back1, back2, scale = self.residual(x0, z0, z, lam, u, scale)
             except (QdframeError, ArithmeticError):  # the model undefined there: keep what was solved
                 break
             best = (solved.size if solved.all() else int(np.argmin(solved))), z, lam
@@ -246,7 +265,7 @@ class _Stepper:
     def single(self, x0: np.ndarray, z0: np.ndarray, lam0: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One step by damped semismooth Newton (backtracking on |r|): z (1, n), λ (1, p)."""
         z, lam, u = z0[None, :].copy(), lam0[None, :].copy(), u[None, :]
-        r, solved, own, back1, back2 = self.residual(x0, z0, z, lam, u)
+        r, solved, own, back1, back2, scale = self.residual(x0, z0, z, lam, u)
         for _ in range(60):
             if solved[0]:
                 return z, lam
@@ -257,11 +276,11 @@ class _Stepper:
             norm, length = np.linalg.norm(r), 1.0
             while length > 1e-8:
                 trial = self.velocities(z, length * change), lam + length * change[:, self.n :]
-                state = self.residual(x0, z0, *trial, u)
+                state = self.residual(x0, z0, *trial, u, scale)
                 if np.linalg.norm(state[0]) < (1 - 1e-4 * length) * norm:
                     break
                 length *= 0.5
-            (z, lam), (r, solved, own, back1, back2) = trial, state
+            (z, lam), (r, solved, own, back1, back2, _) = trial, state
         scale = 1.0 + np.max(np.abs(z0))
         if np.max(np.abs(r)) > 1e-8 * scale:
             raise QdframeError(f"simulate: the implicit step did not converge (residual {np.max(np.abs(r)):.2e})")

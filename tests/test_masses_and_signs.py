@@ -81,6 +81,30 @@ def test_simulator_windows_give_the_step_by_step_trajectory(monkeypatch, name, t
     assert np.max(np.abs(windowed.x - stepwise.x)) <= 1e-9
 
 
+class ScaledLine(InclusionModel):
+    """x1' = x2, x2' ∈ −2·Sgn(k·(x1 + x2)): slide-after-reaching with its switch scaled by k."""
+
+    name = "test-scaled-line"
+    state_names = ("x1", "x2")
+    default_x0 = (1.0, 0.0)
+    k = 1.0
+
+    def blocks(self):
+        return (SetBlock.equation(0, _linear({1: 1.0}, 2)),
+                SetBlock.equation(1, _linear({}, 2), signs=(SignTerm(2.0, _linear({0: -self.k, 1: -self.k}, 2)),)))
+
+
+@pytest.mark.parametrize("k", [1e-3, 1e6])
+def test_simulator_does_not_depend_on_the_switch_scale(k):
+    """The natural map's c is 1/|∂s/∂λ| through the step: the same motion for s and k·s."""
+    scaled = ScaledLine()
+    scaled.k = k
+    reference = simulate(ScaledLine(), 0.0, 2.0, (1.0, 0.0), dt=1e-3)
+    run = simulate(scaled, 0.0, 2.0, (1.0, 0.0), dt=1e-3)
+    assert np.max(np.abs(run.x - reference.x)) <= 1e-9
+    assert np.max(np.abs(run.x[run.t >= 0.42].sum(axis=1))) <= 1e-12  # sliding on x1 + x2 = 0
+
+
 def test_simulator_follows_resolved_states():
     """paper-7.3-reduced has no block for x1..x3 (z_i ≡ x_{i+3}): the same motion as paper-7.3."""
     start = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
