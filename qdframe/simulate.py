@@ -6,9 +6,10 @@ the natural map λ = clip(λ + c·s(x_{k+1}), −1, 1) (as `Functional.selection
 λ = sign s off the surface, and on it s = 0 exactly with λ ∈ [−1, 1] the equivalent
 control. Sliding and sticking are exact roots, without a band or event location; terms
 with the same switch share one λ. c = 1/|∂s/∂λ| through the step (Alart–Curnier's
-scaling), so that the result does not depend on how s is scaled. Of an interval [lo_i, hi_i] the simulator takes the
-velocity nearest the previous one, z_i = clip(z_i^prev, lo_i, hi_i), so a singleton set
-is followed exactly and an interval only as far as it must.
+scaling), so that the result does not depend on how s is scaled. Of an interval
+[lo_i, hi_i] the simulator takes the velocity nearest the previous one,
+z_i = clip(z_i^prev, lo_i, hi_i), so a singleton set is followed exactly and an interval
+only as far as it must.
 
 The steps are solved a window of up to `WINDOW_MAX` steps at a time, by semismooth Newton
 on all of the window's equations at once (the model evaluated at all its nodes, one banded
@@ -177,7 +178,7 @@ class _Stepper:
         and the diagonals on x_{j−1} and x_{j−2} (W, n); and c (W, p), the natural map's scale
         (given, or 1/|∂s/∂λ| through the step at this iterate: :meth:`scales`)."""
         n, dt = self.n, self.dt
-        x = x0 + np.cumsum(dt * z, axis=0)  # as the steps accumulate it: x_j = x_{j−1} + Δt·z_j
+        x = x0 + np.cumsum(dt * z, axis=0)  # x_j = x_0 + Δt·Σ_{i≤j} z_i, x_0 the window's start
         y = np.concatenate([x, u], axis=1)
         lo, hi, dlo, dhi = self.bounds(y, lam)
         s, ds = self.switches(y)
@@ -239,7 +240,8 @@ class _Stepper:
         dx = change[:, : self.n]
         return z + np.diff(dx, axis=0, prepend=np.zeros((1, self.n))) / self.dt
 
-    def window(self, x0: np.ndarray, z0: np.ndarray, lam0: np.ndarray, u: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    def window(self, x0: np.ndarray, z0: np.ndarray, lam0: np.ndarray,
+               u: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
         """Semismooth Newton on the next W steps at once, from z and λ held: the number of
         leading steps solved, and the last iterate's z (W, n) and λ (W, p)."""
         z, lam = np.tile(z0, (u.shape[0], 1)), np.tile(lam0, (u.shape[0], 1))
