@@ -1,29 +1,42 @@
 """Filippov initial-value simulation of a model's inclusion (`qdframe simulate`).
 
-Implicit Euler: x_{k+1} = x_k + Δt·z_{k+1} with z_{k+1} ∈ F(x_{k+1}). Among the
-admissible velocities the simulator takes the one nearest to the previous velocity
-(per coordinate z_i = clip(z_i^prev, lo_i(x_{k+1}), hi_i(x_{k+1}))), so a singleton set
-is followed exactly and an interval only as far as it must. Sign terms a·Sgn(s) use
-Filippov's set with a tiny band (default 1e-9): on a discontinuity surface the only
-consistent implicit step keeps s = 0, so sliding modes come out of the scheme without
-event location. Each step solves R(z) = 0 by semismooth Newton with backtracking.
-One-coordinate blocks only (ψ ∈ {−1, +1}).
+Implicit Euler: x_{k+1} = x_k + Δt·z_{k+1} with z_{k+1} ∈ F(x_{k+1}). A sign term
+a·Sgn(s) enters F as the point a·λ of Filippov's set, its selection λ an unknown tied by
+the natural map λ = clip(λ + c·s(x_{k+1}), −1, 1) (as `Functional.selection_residual`):
+λ = sign s off the surface, and on it s = 0 exactly with λ ∈ [−1, 1] the equivalent
+control. Sliding and sticking are exact roots, without a band or event location; terms
+with the same switch share one λ. c = 1/|∂s/∂λ| through the step (Alart–Curnier's
+scaling), so that the result does not depend on how s is scaled. Of an interval
+[lo_i, hi_i] the simulator takes the velocity nearest the previous one,
+z_i = clip(z_i^prev, lo_i, hi_i), so a singleton set is followed exactly and an interval
+only as far as it must.
+
+The steps are solved a window of up to `WINDOW_MAX` steps at a time, by semismooth Newton
+on all of the window's equations at once (the model evaluated at all its nodes, one banded
+solve per iteration); the leading steps that converged are kept, and a step the window
+cannot settle is solved alone by damped Newton. One-coordinate blocks only (ψ ∈ {−1, +1}).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.linalg import solve_banded
 
 from .errors import InputError, QdframeError
 from .functional import Functional
 from .grid import Grid
 from .model import InclusionModel
+
+SCALE_FLOOR = 1e-12  # c ≤ 1e12 where a selection hardly moves its own switch
+TOL = 1e-12  # a step is solved when |z − target| ≤ TOL·(1 + |z_prev|) and |λ − clip(λ + c·s)| ≤ TOL,
+ROUNDING = 8 * np.finfo(float).eps  # or within what x_j's rounding moves them by
+WINDOW_MIN, WINDOW_MAX = 16, 4096  # steps per window: doubled after a window that converged whole
+WINDOW_ITERATIONS = 8  # Newton iterations per window before its converged leading steps are kept
 
 
 @dataclass
@@ -66,7 +79,6 @@ def simulate(
     x_start: Sequence[float],
     dt: float = 1e-4,
     controls: Sequence[float] | Callable[[float], np.ndarray] | None = None,
-    band: float = 1e-9,
 ) -> Simulation:
     """Simulate x' ∈ F(x) (controls u(t), default 0) from x(t_start) = x_start to t_end."""
     if not (np.isfinite(t_start) and np.isfinite(t_end) and t_end > t_start):
@@ -81,89 +93,197 @@ def simulate(
     steps = int(np.ceil((t_end - t_start) / dt - 1e-9))
     dt = (t_end - t_start) / steps
     t = t_start + dt * np.arange(steps + 1)
-    u_of_t = _controls(model, controls)
-    evaluator = _Evaluator(model, band)
+    us = _control_values(model, controls, t)
+    stepper = _Stepper(model, dt)
 
     xs = np.empty((steps + 1, model.n_states))
     zs = np.empty_like(xs)
-    us = np.array([u_of_t(tk) for tk in t]) if model.n_controls else None
     xs[0] = x
-    lo, hi, _, _ = evaluator.bounds(x, u_of_t(t[0]))
-    z = np.clip(0.5 * (lo + hi), lo, hi)
-    for k in range(steps):
-        z = _implicit_step(evaluator, xs[k], z, dt, u_of_t(t[k + 1]))
-        xs[k + 1] = xs[k] + dt * z
-        zs[k] = z
+    lam = np.sign(stepper.switches(np.concatenate([x, us[0]])[None, :])[0])[0]
+    lo, hi, _, _ = stepper.bounds(np.concatenate([x, us[0]])[None, :], lam[None, :])
+    z = np.clip(0.5 * (lo[0] + hi[0]), lo[0], hi[0])
+    k, window = 0, WINDOW_MIN
+    while k < steps:
+        size = min(window, steps - k)
+        count, z_new, lam_new = stepper.window(xs[k], z, lam, us[k + 1 : k + 1 + size])
+        if count == 0:
+            count, z_new, lam_new = 1, *stepper.single(xs[k], z, lam, us[k + 1])
+        xs[k + 1 : k + 1 + count] = xs[k] + np.cumsum(dt * z_new[:count], axis=0)
+        zs[k : k + count] = z_new[:count]
+        z, lam = z_new[count - 1], lam_new[count - 1]
+        k += count
+        window = min(2 * window, WINDOW_MAX) if count == size else max(count, WINDOW_MIN)
     zs[-1] = z
-    return Simulation(model.name, t, xs, zs, us, dt, tuple(model.state_names))
+    return Simulation(model.name, t, xs, zs, us if model.n_controls else None, dt, tuple(model.state_names))
 
 
-def _controls(model: InclusionModel, controls) -> Callable[[float], np.ndarray]:
+def _control_values(model: InclusionModel, controls, t: np.ndarray) -> np.ndarray:
+    """u(t_k) for every time, (K, m)."""
     m = model.n_controls
     if controls is None:
-        return lambda _t: np.zeros(m)
+        return np.zeros((t.size, m))
     if callable(controls):
-        return lambda tk: np.asarray(controls(tk), dtype=float).reshape(m)
+        return np.array([np.asarray(controls(tk), dtype=float).reshape(m) for tk in t]).reshape(t.size, m)
     fixed = np.asarray(controls, dtype=float).reshape(-1)
     if fixed.size != m:
         raise InputError("controls", f"{m} values", controls)
-    return lambda _t: fixed
+    return np.broadcast_to(fixed, (t.size, m)).copy()
 
 
-class _Evaluator:
-    """The interval [lo_i(x), hi_i(x)] of every coordinate and their x-gradients."""
+class _Stepper:
+    """The implicit Euler steps of x' ∈ F(x): their residuals and semismooth Newton on them.
 
-    def __init__(self, model: InclusionModel, band: float) -> None:
-        self.functional = Functional(model, Grid(1.0, 2), signs="band")
-        self.functional.blocks = tuple(
-            dataclasses.replace(block, signs=tuple(dataclasses.replace(s, band=band) for s in block.signs))
-            for block in self.functional.blocks
-        )
-        self.n = model.n_states
+    Unknowns per step j: z_j (n) and the selections λ_j (p); x_j = x_{j−1} + Δt·z_j. The
+    residual is z_j − clip(z_{j−1}, lo(y_j, λ_j), hi(y_j, λ_j)) and λ_j − clip(λ_j + c·s(y_j), −1, 1),
+    y_j = (x_j, u_j). Newton solves for the change of x (banded: step j meets x_j, x_{j−1}, x_{j−2})
+    and λ, then z_j = (x_j − x_{j−1})/Δt.
+    """
+
+    def __init__(self, model: InclusionModel, dt: float) -> None:
+        self.functional = Functional(model, Grid(1.0, 2), signs="exact")
+        self.n, self.p, self.dt = model.n_states, self.functional.p, dt
         self.coords = [block.coords[0] for block in self.functional.blocks]
+        self.size = self.n + self.p  # unknowns per step: x_j, then λ_j
 
-    def bounds(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def switches(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """s (N, p) of every selection's switch and ∂s/∂x (N, p, n)."""
         f = self.functional
-        y = np.concatenate([x, u])[None, :]
-        zero = np.zeros((1, self.n))
-        lo, hi = np.empty(self.n), np.empty(self.n)
-        dlo, dhi = np.empty((self.n, self.n)), np.empty((self.n, self.n))
-        for coord, block in zip(self.coords, f.blocks):
-            plus, minus = f._sides_1d(block, y, zero)  # ℓ(±1) at z = 0 is ∓(the interval's ends)
-            hi[coord], lo[coord] = -plus.ell[0], minus.ell[0]
-            dhi[coord] = -plus.gradient(f.args)[0, : self.n]
-            dlo[coord] = minus.gradient(f.args)[0, : self.n]
-        return lo, hi, dlo, dhi
+        s, ds = np.empty((y.shape[0], self.p)), np.empty((y.shape[0], self.p, self.n))
+        for k, (b, term) in enumerate(f.selection_terms):
+            s[:, k], gradient = f._switch(f.blocks[b], term, y)
+            ds[:, k] = gradient[:, : self.n]
+        return s, ds
 
+    def bounds(self, y: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """lo, hi (N, n) of F(x) with the sign terms at a·λ, and their gradients (N, n, n + p) in (x, λ)."""
+        f, n, nodes = self.functional, self.n, y.shape[0]
+        lo, hi = np.empty((nodes, n)), np.empty((nodes, n))
+        dlo, dhi = np.empty((nodes, n, f.width)), np.empty((nodes, n, f.width))
+        zero = np.zeros((nodes, n))
+        for b, (coord, block) in enumerate(zip(self.coords, f.blocks)):
+            plus, minus = f._sides_1d(block, y, zero, f._block_selections(b, lam))  # ℓ(±1) at z = 0: ∓(the ends)
+            hi[:, coord], lo[:, coord] = -plus.ell, minus.ell
+            dhi[:, coord], dlo[:, coord] = -plus.gradient(f.width), minus.gradient(f.width)
+        for i, j in f.resolved.items():  # z_i ≡ x_j: no block
+            hi[:, i], dhi[:, i] = y[:, j], 0.0
+            dhi[:, i, j] = 1.0
+            lo[:, i], dlo[:, i] = hi[:, i], dhi[:, i]
+        columns = np.r_[:n, f.args : f.width]  # x and λ (u is given)
+        return lo, hi, dlo[:, :, columns], dhi[:, :, columns]
 
-def _implicit_step(evaluator: _Evaluator, x: np.ndarray, z_prev: np.ndarray, dt: float, u: np.ndarray) -> np.ndarray:
-    """Solve z = clip(z_prev, lo(x + dt·z), hi(x + dt·z)) by semismooth Newton."""
+    def residual(self, x0: np.ndarray, z0: np.ndarray, z: np.ndarray, lam: np.ndarray, u: np.ndarray,
+                 scale: np.ndarray | None = None):
+        """The residual (W, n + p) of the steps z (W, n), λ (W, p) after x0 with velocity z0; whether
+        each step is solved (W,); the Jacobian's blocks: on step j's own unknowns (W, n + p, n + p)
+        and the diagonals on x_{j−1} and x_{j−2} (W, n); and c (W, p), the natural map's scale
+        (given, or 1/|∂s/∂λ| through the step at this iterate: :meth:`scales`)."""
+        n, dt = self.n, self.dt
+        x = x0 + np.cumsum(dt * z, axis=0)  # x_j = x_0 + Δt·Σ_{i≤j} z_i, x_0 the window's start
+        y = np.concatenate([x, u], axis=1)
+        lo, hi, dlo, dhi = self.bounds(y, lam)
+        s, ds = self.switches(y)
+        previous = np.concatenate([z0[None, :], z[:-1]])
+        upper = previous >= hi
+        lower = ~upper & (previous <= lo)
+        keep = ~upper & ~lower  # z_j = z_{j−1}, strictly inside the interval
+        r_z = z - np.where(upper, hi, np.where(lower, lo, previous))
+        slope = np.where(upper[:, :, None], dhi, np.where(lower[:, :, None], dlo, 0.0))  # ∂target/∂(x, λ)
+        own = np.zeros((z.shape[0], self.size, self.size))
+        own[:, :n] = -slope
+        own[:, :n, :n] += np.eye(n) / dt
+        if scale is None:
+            scale = self.scales(own, ds)
+        moved = lam + scale * s
+        inside = np.abs(moved) < 1.0  # the clip is the identity there
+        r_lam = lam - np.clip(moved, -1.0, 1.0)
+        # solved to TOL, or to the rounding of x_j (ε|x_j| moves the target and c·s by as much)
+        noise = ROUNDING * np.abs(x)[:, None, :]
+        solved = np.all(np.abs(r_z) <= TOL * (1.0 + np.max(np.abs(previous), axis=1))[:, None]
+                        + np.sum(np.abs(slope[:, :, :n]) * noise, axis=2), axis=1)
+        solved &= np.all(np.abs(r_lam) <= TOL + scale * np.sum(np.abs(ds) * noise, axis=2), axis=1)
+        own[:, n:, :n] = -(scale * inside)[:, :, None] * ds
+        own[:, n:, n:] = np.eye(self.p) * (1.0 - inside[:, None, :])
+        back1 = -(1.0 + keep) / dt  # z_j − z_{j−1}·keep with z_j = (x_j − x_{j−1})/Δt
+        back1[0] = 0.0
+        back2 = keep / dt
+        back2[:2] = 0.0
+        return np.concatenate([r_z, r_lam], axis=1), solved, own, back1, back2, scale
 
-    def residual(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        lo, hi, dlo, dhi = evaluator.bounds(x + dt * z, u)
-        target = np.clip(z_prev, lo, hi)
-        slope = np.where((z_prev > hi)[:, None], dhi, np.where((z_prev < lo)[:, None], dlo, 0.0))
-        return z - target, np.eye(z.size) - dt * slope
-
-    z = z_prev.copy()
-    r, jac = residual(z)
-    scale = 1.0 + np.max(np.abs(z_prev))
-    for _ in range(60):
-        if np.max(np.abs(r)) <= 1e-12 * scale:
-            return z
+    def scales(self, own: np.ndarray, ds: np.ndarray) -> np.ndarray:
+        """c = 1/|∂s_k/∂λ_k| (W, p), s's response to its selection through the step
+        (Alart–Curnier's scaling): then λ + c·s is the selection that puts s near 0, so a step
+        onto a surface lands inside (−1, 1) and slides rather than bouncing between ±1."""
+        n = self.n
         try:
-            step = np.linalg.solve(jac, -r)
+            response = ds @ np.linalg.solve(own[:, :n, :n], -own[:, :n, n:])  # ∂s/∂λ (W, p, p)
         except np.linalg.LinAlgError:
-            step = -r
-        norm = np.linalg.norm(r)
-        length = 1.0
-        while length > 1e-8:
-            trial = z + length * step
-            r_trial, jac_trial = residual(trial)
-            if np.linalg.norm(r_trial) < (1 - 1e-4 * length) * norm:
+            return np.ones((own.shape[0], self.p))
+        return 1.0 / np.maximum(np.abs(np.diagonal(response, axis1=1, axis2=2)), SCALE_FLOOR)
+
+    def newton_step(self, own: np.ndarray, back1: np.ndarray, back2: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The Newton change (W, n + p) of (x, λ) per step: the banded system solved once."""
+        steps, m = r.shape
+        if steps == 1:
+            return np.linalg.solve(own[0], -r[0])[None, :]
+        lower, upper = 3 * m - 1, m - 1
+        bands = np.zeros((lower + upper + 1, steps * m))
+        a, b = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
+        columns = (m * np.arange(steps))[:, None, None] + b
+        bands[upper + a - b, columns] = own
+        diagonal = m * np.arange(steps)[:, None] + np.arange(self.n)  # the x-columns of every step
+        bands[upper + m, diagonal[:-1]] = back1[1:]
+        bands[upper + 2 * m, diagonal[:-2]] = back2[2:]
+        return solve_banded((lower, upper), bands, -r.reshape(-1), check_finite=False).reshape(steps, m)
+
+    def velocities(self, z: np.ndarray, change: np.ndarray) -> np.ndarray:
+        """z after a Newton change of x: z_j + (Δx_j − Δx_{j−1})/Δt."""
+        dx = change[:, : self.n]
+        return z + np.diff(dx, axis=0, prepend=np.zeros((1, self.n))) / self.dt
+
+    def window(self, x0: np.ndarray, z0: np.ndarray, lam0: np.ndarray,
+               u: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+        """Semismooth Newton on the next W steps at once, from z and λ held: the number of
+        leading steps solved, and the last iterate's z (W, n) and λ (W, p)."""
+        z, lam = np.tile(z0, (u.shape[0], 1)), np.tile(lam0, (u.shape[0], 1))
+        best, scale = (0, z, lam), None
+        for iteration in range(WINDOW_ITERATIONS + 1):
+            try:
+                with np.errstate(all="ignore"):  # a wild iterate's overflow: its steps are not kept
+                    r, solved, own, back1, back2, scale = self.residual(x0, z0, z, lam, u, scale)
+            except (QdframeError, ArithmeticError):  # the model undefined there: keep what was solved
                 break
-            length *= 0.5
-        z, r, jac = trial, r_trial, jac_trial
-    if np.max(np.abs(r)) > 1e-8 * scale:
-        raise QdframeError(f"simulate: the implicit step did not converge (residual {np.max(np.abs(r)):.2e})")
-    return z
+            best = (solved.size if solved.all() else int(np.argmin(solved))), z, lam
+            if best[0] == solved.size or iteration == WINDOW_ITERATIONS:
+                break
+            try:
+                change = self.newton_step(own, back1, back2, r)
+            except (np.linalg.LinAlgError, ValueError):
+                break
+            if not np.all(np.isfinite(change)):
+                break
+            z, lam = self.velocities(z, change), lam + change[:, self.n :]
+        return best
+
+    def single(self, x0: np.ndarray, z0: np.ndarray, lam0: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One step by damped semismooth Newton (backtracking on |r|): z (1, n), λ (1, p)."""
+        z, lam, u = z0[None, :].copy(), lam0[None, :].copy(), u[None, :]
+        r, solved, own, back1, back2, scale = self.residual(x0, z0, z, lam, u)
+        for _ in range(60):
+            if solved[0]:
+                return z, lam
+            try:
+                change = self.newton_step(own, back1, back2, r)
+            except np.linalg.LinAlgError:
+                change = np.linalg.lstsq(own[0], -r[0], rcond=None)[0][None, :]
+            norm, length = np.linalg.norm(r), 1.0
+            while length > 1e-8:
+                trial = self.velocities(z, length * change), lam + length * change[:, self.n :]
+                state = self.residual(x0, z0, *trial, u, scale)
+                if np.linalg.norm(state[0]) < (1 - 1e-4 * length) * norm:
+                    break
+                length *= 0.5
+            (z, lam), (r, solved, own, back1, back2, _) = trial, state
+        scale = 1.0 + np.max(np.abs(z0))
+        if np.max(np.abs(r)) > 1e-8 * scale:
+            raise QdframeError(f"simulate: the implicit step did not converge (residual {np.max(np.abs(r)):.2e})")
+        return z, lam
