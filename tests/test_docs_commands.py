@@ -40,7 +40,7 @@ NOT_RUN = {
     "qpsolvers:proxqp": "a 5-minute measurement",
     # the standard work-precision suite: 269 runs up to N = 100001, about an hour on the 2-core
     # machine with two dask workers; the quick suite runs the same code (and runs here and in
-    # tests/test_bench_run.py)
+    # tests/bench/test_bench_run.py)
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
 }
 """Commands parsed but not run, and why."""

@@ -16,7 +16,7 @@ paper's reduction) derives from it. The set-language form ``paper_sets.Paper73Se
 the same functional and quasidifferential to rounding but, the solution not being unique,
 the default solve takes another path to another solution (19 iterations instead of 21, at
 the default nodes): registering it would change published results.
-tests/test_filippov_reference.py and qdframe/bench/filippov.py state the reference
+tests/bench/test_filippov_reference.py and qdframe/bench/filippov.py state the reference
 Filippov system from this module.
 """
 
