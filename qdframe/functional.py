@@ -601,8 +601,8 @@ class Functional:
 
     def _interval_distance(self, b: int, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """h_b = max(0, ℓ(+1), ℓ(−1)) of a one-coordinate block from the pieces' values alone:
-        :meth:`_state_1d`'s h, each piece evaluated once and in its order (a NaN names the
-        same piece)."""
+        :meth:`_state_1d`'s h, bit for bit, with the pieces that do not depend on ψ evaluated
+        once, in its order (a NaN names the same piece)."""
         block, nodes = self.blocks[b], y.shape[0]
 
         def minima(psi: float) -> list[np.ndarray]:
