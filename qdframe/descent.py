@@ -427,11 +427,12 @@ def descend(
                 break
             step = _keep_start(functional, solver, direction.step)
             trials: list[_Trial] = []
+            ray = functional.ray(xi, step)
 
             def along(gamma: float) -> float:
                 """The objective at ξ + γG; +inf (no decrease) where the model is NaN/inf."""
                 try:
-                    value = functional.objective(xi + gamma * step)
+                    value = ray(gamma)
                 except ModelOutputError as exc:
                     if not exc.nonfinite:
                         raise

@@ -27,6 +27,7 @@ gradient of the coupled terms χ, υ divided by w_k (formulas (4.44), (4.55)).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -260,24 +261,55 @@ class Functional:
     def terms(self, xi: np.ndarray) -> Terms:
         """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
         x, z = self.split(xi)
-        y = self.arguments(xi)
-
-        def integral(values: np.ndarray) -> float:
-            """Σ_k w_k·values_k (an elementwise sum: a BLAS dot goes multi-threaded above ~1e4 nodes)."""
-            return float(np.sum(self.weights * values))
-
-        phi = 0.5 * integral(sum(state.h**2 for state in self._block_states(y, z, self.selections(xi))))
+        phi, omega, sigma, cost = self._set_terms(xi)
         chi = 0.5 * float(np.sum(self._end_residual(x, z) ** 2))
-        omega = 0.5 * integral(np.sum(self._surface(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
-        upsilon = 0.5 * integral(np.sum(self._consistency(x, z) ** 2, axis=1))
-        sigma = 0.5 * integral(np.sum(self.selection_residual(xi)[0] ** 2, axis=1)) if self.p else 0.0
+        upsilon = 0.5 * self._integral(np.sum(self._consistency(x, z) ** 2, axis=1))
         total = phi + chi + omega + upsilon + sigma
-        cost = integral(self._cost_integrand(y)) if self.cost is not None else 0.0
         objective = cost + self.penalty * total if self.cost is not None else total
         return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective)
 
     def objective(self, xi: np.ndarray) -> float:
         return self.terms(xi).objective
+
+    def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
+        """γ ↦ the objective at ξ + γG, what a line search minimizes (paper (180)).
+
+        χ + υ is quadratic in γ (the end residual x0 + ∫z − xT and the consistency residual
+        x − x0 − Z are affine in ξ): it is found here once, and each trial γ evaluates only
+        the set pieces, φ's distances h, ω's surface, σ's natural map and the cost. Equal to
+        `objective(ξ + γG)` to rounding; a trial where the model is NaN/inf raises as
+        `objective` does.
+        """
+        x, z = self.split(xi)
+        dx, dz = self.split(direction)
+        zero = np.zeros_like(dx)
+        quadratic = _Parabola.along(  # υ and χ: each (r(ξ), r's change per unit γ, w)
+            (self._consistency(x, z), self._consistency(dx, dz), self.weights[:, None]),
+            (self._end_residual(x, z), self._end_residual(dx, dz) - self._end_residual(zero, zero), 1.0),
+        )
+
+        def objective(gamma: float) -> float:
+            phi, omega, sigma, cost = self._set_terms(xi + gamma * direction)
+            total = phi + quadratic(gamma) + omega + sigma
+            return cost + self.penalty * total if self.cost is not None else total
+
+        return objective
+
+    def _set_terms(self, xi: np.ndarray) -> tuple[float, float, float, float]:
+        """φ, ω, σ and the cost at ξ, the terms not quadratic in ξ, from the pieces' values."""
+        x, z = self.split(xi)
+        y, lam = self.arguments(xi), self.selections(xi)
+        distances = [self._interval_distance(b, y, z, lam) if block.size == 1 else self._state_sphere(block, y, z).h
+                     for b, block in enumerate(self.blocks)]
+        phi = 0.5 * self._integral(sum(h**2 for h in distances))
+        omega = 0.5 * self._integral(np.sum(self._surface(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
+        sigma = 0.5 * self._integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.p else 0.0
+        cost = self._integral(self._cost_integrand(y)) if self.cost is not None else 0.0
+        return phi, omega, sigma, cost
+
+    def _integral(self, values: np.ndarray) -> float:
+        """Σ_k w_k·values_k (an elementwise sum: a BLAS dot goes multi-threaded above ~1e4 nodes)."""
+        return float(np.sum(self.weights * values))
 
     def boundary_error(self, xi: np.ndarray) -> float:
         """max |x_j(T) − xT_j| over J and |x_i(T) − x_i(0)| over the periodic P, read from the
@@ -318,6 +350,12 @@ class Functional:
             jacobian[:, k, : self.args] = -c * inside[:, None] * ds
             jacobian[:, k, self.args + k] = 1.0 - inside
         return residual, jacobian
+
+    def _natural_map(self, y: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """σ's r = λ − clip(λ + c·s(y), −1, 1), (N, p): :meth:`selection_residual` without its Jacobian."""
+        c = self.selection_scale
+        return np.stack([lam[:, k] - np.clip(lam[:, k] + c * self._switch(self.blocks[b], term, y)[0], -1.0, 1.0)
+                         for k, (b, term) in enumerate(self.selection_terms)], axis=1)
 
     def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
         """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
@@ -462,9 +500,9 @@ class Functional:
     def _cost_integrand(self, x: np.ndarray) -> np.ndarray:
         total = np.zeros(x.shape[0])
         for fn in self.cost.max_groups:  # type: ignore[union-attr]
-            total += self._scalar_pieces(fn, x, "cost max-group")[0].max(axis=1)
+            total += _reduce_last(np.maximum, self._scalar_pieces(fn, x, "cost max-group")[0])
         for fn in self.cost.min_groups:  # type: ignore[union-attr]
-            total += self._scalar_pieces(fn, x, "cost min-group")[0].min(axis=1)
+            total += _reduce_last(np.minimum, self._scalar_pieces(fn, x, "cost min-group")[0])
         return total
 
     def _cost_quasidifferential(self, x: np.ndarray, delta: float) -> tuple[SimplexSum, SimplexSum]:
@@ -542,28 +580,55 @@ class Functional:
                    selection: tuple[int, np.ndarray] | None = None) -> _SignPart:
         """c(a(y)·Sgn(s), ψ) = a(y)·κ of a sign term, ψ = ±1 per node (model.SignTerm):
         κ = ψλ with a selection (column, λ), else the band's κ_ψ(s)."""
-        label = f"block {block.name or block.coords} sign term {term.name!r}"
-        if isinstance(term.amplitude, (int, float)):
-            groups: list[_Piece] = []
-            amplitude = np.full(y.shape[0], float(term.amplitude))
-        else:
-            groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
-            amplitude = sum(piece.values.max(axis=1) for piece in groups)
+        amplitude, groups = self._amplitude(block, term, y)
         kappa_grad = np.zeros((y.shape[0], self.width))
         if selection is not None:  # the point a·λ of Filippov's set: c = a·ψλ
             column, lam = selection
             kappa_grad[:, column] = psi
             return _SignPart(psi * lam, kappa_grad, amplitude, groups)
         s, ds = self._switch(block, term, y)
-        if np.isinf(term.band):  # the whole interval everywhere (a term on its own surface)
-            kappa = np.ones_like(s)
-        elif term.band > 0:  # κ = 1 − 2·S(u), u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³ (C¹)
-            u = np.clip(-psi * s / term.band, 0.0, 1.0)
-            kappa = 1.0 - 2.0 * u * u * (3.0 - 2.0 * u)
-            kappa_grad[:, : self.args] = (12.0 * u * (1.0 - u) * psi / term.band)[:, None] * ds
-        else:  # exact Filippov sign: the whole interval only at s = 0
-            kappa = np.where(psi * s >= 0, 1.0, -1.0)
+        kappa, slope = _band_kappa(term.band, s, psi)
+        if slope is not None:
+            kappa_grad[:, : self.args] = slope[:, None] * ds
         return _SignPart(kappa, kappa_grad, amplitude, groups)
+
+    def _amplitude(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, list[_Piece]]:
+        """A sign term's a(y) = Σ_i max_q a_iq(y) (N,) and its groups."""
+        if isinstance(term.amplitude, (int, float)):
+            return np.full(y.shape[0], float(term.amplitude)), []
+        label = f"block {block.name or block.coords} sign term {term.name!r}"
+        groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
+        return sum(_reduce_last(np.maximum, piece.values) for piece in groups), groups
+
+    def _interval_distance(self, b: int, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """h_b = max(0, ℓ(+1), ℓ(−1)) of a one-coordinate block from the pieces' values alone:
+        :meth:`_state_1d`'s h, bit for bit, with the pieces that do not depend on ψ evaluated
+        once, in its order (a NaN names the same piece)."""
+        block, nodes = self.blocks[b], y.shape[0]
+
+        def minima(psi: float) -> list[np.ndarray]:
+            return [_reduce_last(np.minimum, self._min_group(block, group, y, np.full((nodes, 1), psi))[0])
+                    for group in block.min_groups]
+
+        maxes = [self._max_group(block, group, y)[0][:, :, 0] for group in block.max_groups]
+        upper = minima(1.0)
+        signs = [(term, selection, self._amplitude(block, term, y)[0],
+                  None if selection is not None else self._switch(block, term, y)[0])
+                 for term, selection in zip(block.signs, self._block_selections(b, lam))]
+        lower = minima(-1.0)
+
+        def ell(psi: float, mins: list[np.ndarray]) -> np.ndarray:
+            """ℓ(ψ) = zψ − c(F_b, ψ), as :meth:`_side` sums it."""
+            value = z[:, block.coords[0]] * psi
+            for f in maxes:
+                value -= _reduce_last(np.maximum, f * psi)
+            for g in mins:
+                value -= g
+            for term, selection, amplitude, s in signs:
+                value -= (psi * selection[1] if selection is not None else _band_kappa(term.band, s, psi)[0]) * amplitude
+            return value
+
+        return np.maximum(0.0, np.maximum(ell(1.0, upper), ell(-1.0, lower)))
 
     def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> list[_Side]:
         """A one-coordinate block at ψ = +1 and ψ = −1."""
@@ -634,6 +699,42 @@ def _reduce_last(ufunc: np.ufunc, values: np.ndarray) -> np.ndarray:
     for column in range(1, values.shape[-1]):
         ufunc(out, values[..., column], out=out)
     return out
+
+
+def _band_kappa(band: float, s: np.ndarray, psi: np.ndarray | float) -> tuple[np.ndarray, np.ndarray | None]:
+    """κ_ψ(s) of a sign term without a selection (:class:`~qdframe.model.SignTerm`) and
+    dκ/ds (None where it is 0): band β = inf, the whole interval a·[−1, 1] everywhere (a
+    term on its own surface); β > 0, κ = 1 − 2·S(u), u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³
+    (C¹); β = 0, Filippov's exact sign, the whole interval only at s = 0."""
+    if np.isinf(band):
+        return np.ones_like(s), None
+    if band > 0:
+        u = np.clip(-psi * s / band, 0.0, 1.0)
+        return 1.0 - 2.0 * u * u * (3.0 - 2.0 * u), 12.0 * u * (1.0 - u) * psi / band
+    return np.where(psi * s >= 0, 1.0, -1.0), None
+
+
+@dataclass(frozen=True)
+class _Parabola:
+    """q(γ) = ½ Σ w‖r + γs‖² of affine residuals along a ray, in vertex form
+    q* + a·(γ − γ*)², a = ½ Σ w‖s‖²: both terms are ≥ 0, so q keeps the accuracy of a
+    direct evaluation where it is small (a·γ² + b·γ + c loses it to cancellation)."""
+
+    minimum: float  # q*
+    curvature: float  # a
+    vertex: float  # γ*
+
+    @classmethod
+    def along(cls, *terms: tuple[np.ndarray, np.ndarray, np.ndarray | float]) -> "_Parabola":
+        """Σ over the terms (r, s, w) of ½ Σ w·(r + γs)², w broadcast to r's shape."""
+        slope = sum(float(np.sum(w * r * s)) for r, s, w in terms)  # q'(0)
+        second = sum(float(np.sum(w * s * s)) for _, s, w in terms)  # q''
+        vertex = -slope / second if second > 0 else 0.0
+        minimum = 0.5 * sum(float(np.sum(w * (r + vertex * s) ** 2)) for r, s, w in terms)
+        return cls(minimum, 0.5 * second, vertex)
+
+    def __call__(self, gamma: float) -> float:
+        return self.minimum + self.curvature * (gamma - self.vertex) ** 2
 
 
 def _delta_active(values: np.ndarray, delta: float, spread: np.ndarray) -> np.ndarray:

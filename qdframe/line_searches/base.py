@@ -10,9 +10,10 @@ from typing import ClassVar
 class LineSearch(ABC):
     """Chooses the step γ ∈ (0, γ̄] along a direction G.
 
-    `along(γ)` is the objective at ξ + γG; `value` is its value at γ = 0 and `slope`
-    the directional derivative there (negative for a descent direction). Returns
-    (γ, along(γ)); γ = 0 means no decrease was found.
+    `along(γ)` is the objective at ξ + γG (:meth:`~qdframe.functional.Functional.ray`:
+    χ + υ in closed form, each trial evaluates only the set pieces); `value` is its value
+    at γ = 0 and `slope` the directional derivative there (negative for a descent
+    direction). Returns (γ, along(γ)); γ = 0 means no decrease was found.
     """
 
     name: ClassVar[str] = ""
