@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import qdframe
-import qdframe.functional as functional_module
-from qdframe.functional import Functional, _delta_active
+import qdframe.functional.pieces as functional_module  # where ψ* is searched
+from qdframe.functional import Functional
+from qdframe.functional.assembly import _delta_active
 from qdframe.grid import Grid
 from qdframe.models.paper_sets import Paper72Sets
 from qdframe.psi import _tangent_basis, _golden_on_circle, sphere_samples

@@ -1,0 +1,150 @@
+"""The discretized functional I = φ + χ + ω + υ + σ (+ cost) and its quasidifferential.
+
+Unknowns ξ are stored per node as one row [x (n) | z (n) | u (m) | λ (p)], ξ of shape
+(N, 2n + m + p), u the model's unknown controls (m = 0 without) and λ the selections of
+its p sign terms a·Sgn(s) (p = 0 with ``signs="band"``). The sets' pieces are functions
+of y = (x, u). The value x(t_0) = x0 is known, so it is not an unknown: it is fixed at
+node 0 and the quasidifferential is projected onto the remaining free unknowns.
+
+σ is the natural map of the complementarity λ ∈ Sgn(s) (as in contact mechanics, Alart
+and Curnier): it is zero exactly when λ = sign s for s ≠ 0 and λ ∈ [−1, 1] for s = 0, so
+with σ = 0 the sign term a·Sgn(s) contributes the point a·λ of Filippov's set, and
+sticking and sliding come out of the equations, not out of a smoothing band.
+
+One job per module, each mixed into :class:`Functional`:
+
+* :mod:`.terms` — the terms' values (paper (3.13)–(3.17)), the objective, the ray a line
+  search minimizes, the pointwise residuals;
+* :mod:`.assembly` — the quasidifferential [A_k, B_k] (paper Section 4) for the paper's
+  direction;
+* :mod:`.jacobians` — residuals with generalized-Jacobian elements for gauss-newton;
+* :mod:`.pieces` — the model's pieces at ψ, ℓ(ψ) = <z_b, ψ> − c(F_b, ψ) and ψ*.
+
+What depends on the scheme (the points, quadrature weights w_k, the cumulative integral
+Z = ∫_0^t z and its adjoint) comes from the grid, built from the scheme's own rule
+(:class:`~qdframe.grid.Grid`, :mod:`qdframe.schemes`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError, ModelOutputError
+from ..grid import Grid
+from ..model import InclusionModel, SetBlock
+from .assembly import Quasidifferentials
+from .jacobians import DistanceSides, Jacobians
+from .pieces import Pieces
+from .terms import Residuals, Terms, Values
+
+__all__ = ["SIGN_MODES", "DistanceSides", "Functional", "Residuals", "Terms"]
+
+SIGN_MODES = ("exact", "band")
+
+
+class Functional(Values, Quasidifferentials, Jacobians, Pieces):
+    """The discretized objective of a model on a grid: the layout of ξ here, each job in its
+    own module (values and the ray: :mod:`.terms`; the quasidifferential: :mod:`.assembly`;
+    residuals with Jacobian elements: :mod:`.jacobians`; the model's pieces at ψ: :mod:`.pieces`)."""
+
+    def __init__(
+        self,
+        model: InclusionModel,
+        grid: Grid,
+        psi_samples: int = 128,
+        signs: str = "exact",
+        selection_scale: float = 1.0,
+    ) -> None:
+        """`signs`: "exact" (a selection λ ∈ Sgn(s) per sign term and node, tied by σ) or
+        "band" (the C¹ band of :class:`~qdframe.model.SignTerm`, no selections);
+        `selection_scale` is c in σ's natural map."""
+        if signs not in SIGN_MODES:
+            raise InputError("signs", " or ".join(f'"{mode}"' for mode in SIGN_MODES), signs)
+        if not (isinstance(selection_scale, (int, float)) and np.isfinite(selection_scale) and selection_scale > 0):
+            raise InputError("selection_scale", "a positive finite number", selection_scale)
+        self.model = model
+        self.grid = grid
+        self.signs = signs
+        self.selection_scale = float(selection_scale)
+        self.n = model.n_states
+        self.m = model.n_controls
+        self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
+        # the sign terms in block order, (block index, term), and each one's selection column:
+        # terms with the same `switch` callable share one λ (one surface, one Filippov selection)
+        self.sign_terms = [] if signs == "band" else [
+            (b, term) for b, block in enumerate(self.blocks) for term in block.signs
+        ]
+        columns: dict[int, int] = {}
+        self.sign_columns = [columns.setdefault(id(term.switch), len(columns)) for _, term in self.sign_terms]
+        self.selection_terms = [self.sign_terms[self.sign_columns.index(k)] for k in range(len(columns))]
+        self.p = len(columns)
+        self.dim = 2 * self.n + self.m + self.p
+        self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
+        self.width = self.args + self.p  # width of the sides' gradients: (x, u, λ)
+        self.surface = model.surface()
+        self.cost = model.cost()
+        self.penalty = float(self.cost.weight) if self.cost is not None else 1.0
+        self.end = np.asarray(model.end_indices, dtype=int)  # J: x_j(T) = xT_j
+        self.periodic = np.asarray(model.periodic, dtype=int)  # P: x_i(T) = x_i(0)
+        self.start_given = np.isfinite(model.x0)  # x_i(0) = x0_i given; NaN: free
+        self.psi_samples = psi_samples
+        self._psi_memo: dict[int, list[tuple[bytes, np.ndarray]]] = {}  # per S_k block: recent (inputs, ψ*)
+        self.free = np.ones((grid.nodes, self.dim), dtype=bool)
+        self.free[0, : self.n] = ~self.start_given  # a given x_i(t_0) = x0_i is not an unknown
+        self.resolved = dict(model.resolved)  # z_i ≡ x_j: z_i is not an unknown
+        for i in self.resolved:
+            self.free[:, self.n + i] = False
+
+    @property
+    def weights(self) -> np.ndarray:
+        return self.grid.weights
+
+    def split(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x, z), each (N, n); a resolved state's z_i is x_j."""
+        x, z = xi[:, : self.n], xi[:, self.n : 2 * self.n]
+        if self.resolved:
+            z = z.copy()
+            for i, j in self.resolved.items():
+                z[:, i] = x[:, j]
+        return x, z
+
+    def controls(self, xi: np.ndarray) -> np.ndarray:
+        """u, shape (N, m)."""
+        return xi[:, 2 * self.n : 2 * self.n + self.m]
+
+    def selections(self, xi: np.ndarray) -> np.ndarray:
+        """λ, shape (N, p): the selection of each sign term's Sgn(s) at every node."""
+        return xi[:, 2 * self.n + self.m :]
+
+    def arguments(self, xi: np.ndarray) -> np.ndarray:
+        """y = (x, u), the pieces' argument, shape (N, n + m)."""
+        return xi[:, : self.n] if self.m == 0 else np.concatenate([xi[:, : self.n], self.controls(xi)], axis=1)
+
+    def pack(self, x: np.ndarray, z: np.ndarray, u: np.ndarray | None = None,
+             selections: np.ndarray | None = None) -> np.ndarray:
+        """ξ from its parts; selections default to the band's, clip(s(y)/β, −1, 1) per term."""
+        nodes = x.shape[0]
+        parts = [x, z, np.zeros((nodes, self.m)) if u is None else u, np.zeros((nodes, self.p))]
+        xi = np.concatenate(parts, axis=1).astype(float)
+        xi[0, : self.n] = np.where(self.start_given, self.model.x0, xi[0, : self.n])
+        for i, j in self.resolved.items():
+            xi[:, self.n + i] = xi[:, j]
+        if self.p:
+            if selections is None:
+                y = self.arguments(xi)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    selections = np.stack([np.nan_to_num(np.clip(self._switch(self.blocks[b], term, y)[0] / term.band,
+                                                                 -1.0, 1.0)) for b, term in self.selection_terms], axis=1)
+            xi[:, 2 * self.n + self.m :] = selections
+        return xi
+
+    def initial_point(self) -> np.ndarray:
+        t = self.grid.t
+        x, z = self.model.initial_guess(t)
+        u = self.model.initial_controls(t)
+        for label, array, width in (("x", x, self.n), ("z", z, self.n), ("u", u, self.m)):
+            if np.shape(array) != (t.size, width):
+                raise ModelOutputError(
+                    f"model {self.model.name!r}: initial {label} has shape {np.shape(array)}, expected {(t.size, width)}"
+                )
+        return self.pack(np.asarray(x, float), np.asarray(z, float), np.asarray(u, float))

@@ -1,0 +1,123 @@
+"""The quasidifferential [A_k, B_k] of the functional at every node (paper Section 4).
+
+In the L² metric: the integrand's quasidifferential, formulas (4.5) (−max <f, ψ*> is
+concave: a superdifferential), (4.555) (−min g is convex: a subdifferential) and (4.6)
+(the surface), plus the discrete gradient of the coupled terms χ and υ divided by w_k
+(formulas (4.44), (4.55)), and σ's natural map. Pieces within δ of their group's
+extreme are active (Section 6). x(t_0) = x0, where given, is not an unknown: the sets
+are projected onto the free unknowns.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..quasidifferential import Quasidifferential, SimplexSum
+
+
+class Quasidifferentials:
+    """[A_k, B_k] at ξ (mixed into :class:`~qdframe.functional.Functional`)."""
+
+    def quasidifferential(self, xi: np.ndarray, delta: float) -> Quasidifferential:
+        """[A_k, B_k] for every node, δ-active pieces, L² metric (paper Section 4)."""
+        x, z = self.split(xi)
+        y = self.arguments(xi)
+        nodes, n = x.shape
+        w = self.weights
+        smooth = np.zeros((nodes, self.dim))
+        # υ (4.55): x-part r_k (and −Σ w_k r_k / w_0 on a free x_i(0)), z-part −(Cᵀ w r)_k / w_k
+        r = self._consistency(x, z)
+        smooth[:, :n] += r
+        smooth[0, :n] -= ~self.start_given * (w @ r) / w[0]
+        smooth[:, n : 2 * n] -= self.grid.cumulative_adjoint(w[:, None] * r) / w[:, None]
+        # χ (4.44): each end residual on its coordinate's z at every node (the integral's
+        # weights over w_k), and on a free x_j(0)
+        end = self._end_residual(x, z)
+        if end.size:
+            coords = np.concatenate([self.end, self.periodic])
+            np.add.at(smooth, (slice(None), n + coords), (self.grid.integral_weights / w)[:, None] * end)
+            starts = end[: self.end.size] * ~self.start_given[self.end]
+            np.add.at(smooth[0], self.end, starts / w[0])
+        # ω (4.6)
+        if self.surface is not None:
+            e, de = self._surface(x)
+            smooth[:, :n] += np.einsum("ko,kon->kn", e, de)
+        # σ: the natural map's residual times an element of its generalized Jacobian
+        if self.p:
+            r, dr = self.selection_residual(xi)
+            smooth += self._embed(np.einsum("ki,kid->kd", r, dr))
+        sub_groups: list[tuple[np.ndarray, np.ndarray]] = []
+        sup_groups: list[tuple[np.ndarray, np.ndarray]] = []
+        for block, side in zip(self.blocks, self._block_states(y, z, self.selections(xi))):
+            h = side.h
+            positive = h > 0
+            smooth[:, n + np.asarray(block.coords)] += h[:, None] * side.psi  # h ψ* e_z
+            for part in side.min_parts:  # −min g is convex: subdifferential (4.555)
+                mask = _delta_active(-part.values, delta, positive)
+                sub_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
+            for part in side.max_parts:  # −max <f, ψ*> is concave: superdifferential (4.5)
+                mask = _delta_active(part.values, delta, positive)
+                sup_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
+            for sign in side.sign_parts:  # −κ·a(y) − smooth in s: by the sign of κ
+                smooth -= self._embed(h[:, None] * sign.amplitude[:, None] * sign.kappa_grad)
+                for piece in sign.groups:
+                    mask = _delta_active(piece.values, delta, positive)
+                    scale = (h * sign.kappa)[:, None, None]
+                    sup_groups.append((self._embed(-np.maximum(scale, 0.0) * piece.grads), mask))
+                    sub_groups.append((self._embed(np.maximum(-scale, 0.0) * piece.grads), mask))
+        sub = _assemble(smooth, sub_groups).scaled(self.penalty)
+        sup = _assemble(np.zeros_like(smooth), sup_groups).scaled(self.penalty)
+        if self.cost is not None:
+            cost_sub, cost_sup = self._cost_quasidifferential(y, delta)
+            sub, sup = sub + cost_sub, sup + cost_sup
+        return Quasidifferential(_project(self._tie(sub), self.free), _project(self._tie(sup), self.free))
+
+    def _tie(self, polytope: SimplexSum) -> SimplexSum:
+        """The chain rule of z_i ≡ x_j: a z_i-component moves onto x_j."""
+        if not self.resolved:
+            return polytope
+        center, generators = polytope.center.copy(), polytope.generators.copy()
+        for i, j in self.resolved.items():
+            for array in (center, generators):
+                array[..., j] += array[..., self.n + i]
+                array[..., self.n + i] = 0.0
+        return SimplexSum(center, generators, polytope.mask)
+
+    def _cost_quasidifferential(self, x: np.ndarray, delta: float) -> tuple[SimplexSum, SimplexSum]:
+        everywhere = np.ones(x.shape[0], dtype=bool)
+        sub = [(self._embed(g), _delta_active(v, delta, everywhere))
+               for v, g in (self._scalar_pieces(fn, x, "cost max-group") for fn in self.cost.max_groups)]  # type: ignore[union-attr]
+        sup = [(self._embed(g), _delta_active(-v, delta, everywhere))
+               for v, g in (self._scalar_pieces(fn, x, "cost min-group") for fn in self.cost.min_groups)]  # type: ignore[union-attr]
+        zero = np.zeros((x.shape[0], self.dim))
+        return _assemble(zero, sub), _assemble(zero, sup)
+
+
+def _delta_active(values: np.ndarray, delta: float, spread: np.ndarray) -> np.ndarray:
+    """Pieces within δ of the group's maximum (paper Section 6); only the best where not `spread`."""
+    top = values.max(axis=1, keepdims=True)
+    active = values >= top - delta
+    best = np.zeros_like(active)
+    best[np.arange(values.shape[0]), np.argmax(values, axis=1)] = True
+    return np.where(spread[:, None], active, best)
+
+
+def _assemble(center: np.ndarray, groups: list[tuple[np.ndarray, np.ndarray]]) -> SimplexSum:
+    """center + Σ co{generators} from a list of (generators (N, m, d), mask (N, m))."""
+    if not groups:
+        return SimplexSum.point(center)
+    width = max(g.shape[1] for g, _ in groups)
+    nodes, dim = center.shape
+    generators = np.zeros((nodes, len(groups), width, dim))
+    mask = np.zeros((nodes, len(groups), width), dtype=bool)
+    for index, (g, m) in enumerate(groups):
+        generators[:, index, : g.shape[1]] = g
+        mask[:, index, : m.shape[1]] = m
+    return SimplexSum(center, generators, mask).compact()
+
+
+def _project(polytope: SimplexSum, free: np.ndarray) -> SimplexSum:
+    """Restrict to the free unknowns (fixed components set to 0)."""
+    return SimplexSum(
+        polytope.center * free, polytope.generators * free[:, None, None, :], polytope.mask
+    ).compact()

@@ -1,0 +1,58 @@
+"""Residuals with one element of their generalized Jacobians, for Newton-type directions.
+
+gauss-newton (:mod:`qdframe.directions.gauss_newton`) writes I as half a sum of squares:
+the consistency υ and end χ residuals (:class:`~qdframe.functional.terms.Values`), the
+surface's e(x), σ's natural map and, per block, the distance h_b = max(0, max_side ℓ)
+with each side's ℓ and gradient (:class:`DistanceSides`), and the cost's pieces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class DistanceSides:
+    """A block's sides: tuples (ℓ (N,), ∂ℓ/∂y (N, n + m + p), ∂ℓ/∂z_b = ψ (N, k)); h_b = max(0, max ℓ).
+
+    `equation`: F_b(y) is a single point (one-piece max-groups, sign terms with
+    selections): then the ψ = +1 side alone is the signed residual z_b − f_b(y), h = |ℓ|.
+    """
+
+    coords: tuple[int, ...]
+    sides: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+    equation: bool = False
+
+    @property
+    def h(self) -> np.ndarray:
+        return np.maximum(0.0, np.max([ell for ell, _, _ in self.sides], axis=0))
+
+
+class Jacobians:
+    """Residuals and Jacobian elements at ξ (mixed into :class:`~qdframe.functional.Functional`)."""
+
+    def distance_sides(self, xi: np.ndarray) -> list[DistanceSides]:
+        """For every block, h_b = max(0, max_side ℓ_side) with each side's signed ℓ and
+        one element of its generalized Jacobian (:meth:`_Side.gradient`). One-coordinate
+        blocks have two sides, ψ = +1 and ψ = −1 (the interval's ends); S_k blocks have
+        one, ψ = ψ*."""
+        y, z, lam = self.arguments(xi), self.split(xi)[1], self.selections(xi)
+        out = []
+        for b, block in enumerate(self.blocks):
+            sides = (self._sides_1d(block, y, z, self._block_selections(b, lam)) if block.size == 1
+                     else [self._state_sphere(block, y, z)])
+            point = (block.size == 1 and not sides[0].min_parts and (self.p or not block.signs)
+                     and all(part.values.shape[1] == 1 for part in sides[0].max_parts))
+            out.append(DistanceSides(block.coords, [(side.ell, side.gradient(self.width), side.psi)
+                                                    for side in sides[: 1 if point else None]], point))
+        return out
+
+    def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The cost's max-groups and min-groups: lists of (values (N, m), gradients (N, m, n + m))."""
+        y = self.arguments(xi)
+        return (
+            [self._scalar_pieces(fn, y, "cost max-group") for fn in self.cost.max_groups],  # type: ignore[union-attr]
+            [self._scalar_pieces(fn, y, "cost min-group") for fn in self.cost.min_groups],  # type: ignore[union-attr]
+        )

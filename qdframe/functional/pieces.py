@@ -1,0 +1,298 @@
+"""The model's pieces at ψ: each block's ℓ(ψ) = <z_b, ψ> − c(F_b(y), ψ) and its parts.
+
+The support function of a block (paper (support), (supf), (subf)) is
+
+    c(F_b(y), ψ) = Σ_j max_q <f_jq(y), ψ> + Σ_j min_p g_jp(y, ψ) + Σ_i a_i(y)·c(Sgn(s_i), ψ),
+
+evaluated here for all nodes at once and checked (shape, finiteness: a NaN names its
+piece and node). ψ* = argmax_ψ ℓ(ψ): in closed form (ψ = ±1) for a one-coordinate block,
+searched on S_k (:mod:`qdframe.psi`, Remark 5.1) for a block of k coordinates, once per
+iterate. h_b = max(0, ℓ(ψ*)) is the distance of z_b from F_b (paper (3.13)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ModelOutputError
+from ..model import SetBlock
+from ..psi import maximize_on_sphere
+
+
+@dataclass
+class _Piece:
+    """One group of pieces at ψ: values (N, m) and gradients (N, m, n + m)."""
+
+    values: np.ndarray
+    grads: np.ndarray
+
+
+@dataclass
+class _SignPart:
+    """A sign term at ψ: κ = c(Sgn, ψ) (ψλ with a selection), its gradient, the amplitude a."""
+
+    kappa: np.ndarray  # (N,)
+    kappa_grad: np.ndarray  # (N, n + m + p): dκ/dy (the band's slope·∇s, or ψ on λ's column)
+    amplitude: np.ndarray  # (N,) a(y)
+    groups: list[_Piece]  # a = Σ_i max_q a_iq
+
+
+@dataclass
+class _Side:
+    """A block evaluated at ψ (N, k): ℓ(ψ) = <z, ψ> − c(F_b, ψ) and its groups."""
+
+    psi: np.ndarray
+    ell: np.ndarray
+    max_parts: list[_Piece]  # values <f_q, ψ>, gradients ψᵀ ∂f_q/∂y
+    min_parts: list[_Piece]  # values g_p(y, ψ), gradients ∂g_p/∂y
+    sign_parts: list[_SignPart]
+
+    @property
+    def h(self) -> np.ndarray:
+        return np.maximum(0.0, self.ell)
+
+    def gradient(self, width: int) -> np.ndarray:
+        """∂ℓ/∂y (N, width) from the active piece of every group (a generalized-Jacobian
+        element); y = (x, u, λ), the pieces' gradients fill the first n + m columns."""
+        rows = np.arange(self.ell.size)
+        grad = np.zeros((self.ell.size, width))
+        for part in self.max_parts:
+            grad[:, : part.grads.shape[-1]] -= part.grads[rows, np.argmax(part.values, axis=1)]
+        for part in self.min_parts:
+            grad[:, : part.grads.shape[-1]] -= part.grads[rows, np.argmin(part.values, axis=1)]
+        for sign in self.sign_parts:
+            grad -= sign.amplitude[:, None] * sign.kappa_grad
+            for piece in sign.groups:
+                grad[:, : piece.grads.shape[-1]] -= sign.kappa[:, None] * piece.grads[rows, np.argmax(piece.values, axis=1)]
+        return grad
+
+    @staticmethod
+    def choose(upper: np.ndarray, a: "_Side", b: "_Side") -> "_Side":
+        """Per node, side `a` where `upper` else side `b` (same block, same groups)."""
+
+        def pick(u, v):
+            mask = upper.reshape(upper.shape + (1,) * (u.ndim - 1))
+            return np.where(mask, u, v)
+
+        return _Side(
+            pick(a.psi, b.psi),
+            pick(a.ell, b.ell),
+            [_Piece(pick(p.values, q.values), pick(p.grads, q.grads)) for p, q in zip(a.max_parts, b.max_parts)],
+            [_Piece(pick(p.values, q.values), pick(p.grads, q.grads)) for p, q in zip(a.min_parts, b.min_parts)],
+            [
+                _SignPart(pick(p.kappa, q.kappa), pick(p.kappa_grad, q.kappa_grad), p.amplitude, p.groups)
+                for p, q in zip(a.sign_parts, b.sign_parts)
+            ],
+        )
+
+
+class Pieces:
+    """Evaluates and checks a model's pieces (mixed into :class:`~qdframe.functional.Functional`)."""
+
+    def _check(self, label: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
+        array = np.asarray(array)
+        if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
+            expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+            raise ModelOutputError(
+                f"model {self.model.name!r}: {label} returned shape {array.shape}, expected {expected}", label=label
+            )
+        finite = np.isfinite(array)
+        if not finite.all():
+            bad = np.argwhere(~finite)[0]
+            node = int(bad[0])
+            per_node = array.shape[0] == self.grid.nodes
+            when = f" (t = {self.grid.t[node]:.6g})" if per_node else ""
+            raise ModelOutputError(
+                f"model {self.model.name!r}: {label} returned a non-finite value at node {node}{when}",
+                label=label, node=node if per_node else None, nonfinite=True,
+            )
+
+    def _scalar_pieces(self, fn, x: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+        values, grads = fn(x)
+        self._check(label, values, (x.shape[0], None))
+        self._check(f"{label} gradient", grads, (x.shape[0], values.shape[1], self.args))
+        return values, grads
+
+    def _max_group(self, block: SetBlock, group, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f, jac = group.pieces(x)
+        label = f"block {block.name or block.coords} max-group {group.name!r}"
+        self._check(label, f, (x.shape[0], None, block.size))
+        self._check(f"{label} Jacobian", jac, (x.shape[0], f.shape[1], block.size, self.args))
+        return f, jac
+
+    def _min_group(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        g, grad = group.pieces(x, psi)
+        label = f"block {block.name or block.coords} min-group {group.name!r}"
+        self._check(label, g, (x.shape[0], None))
+        self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
+        return g, grad
+
+    def _switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked."""
+        label = f"block {block.name or block.coords} sign term {term.name!r}"
+        s, ds = term.switch(y)
+        self._check(f"{label} switch", s, (y.shape[0],))
+        self._check(f"{label} switch gradient", ds, (y.shape[0], self.args))
+        return s, ds
+
+    def _amplitude(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, list[_Piece]]:
+        """A sign term's a(y) = Σ_i max_q a_iq(y) (N,) and its groups."""
+        if isinstance(term.amplitude, (int, float)):
+            return np.full(y.shape[0], float(term.amplitude)), []
+        label = f"block {block.name or block.coords} sign term {term.name!r}"
+        groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
+        return sum(_reduce_last(np.maximum, piece.values) for piece in groups), groups
+
+    def _sign_part(self, block: SetBlock, term, y: np.ndarray, psi: np.ndarray,
+                   selection: tuple[int, np.ndarray] | None = None) -> _SignPart:
+        """c(a(y)·Sgn(s), ψ) = a(y)·κ of a sign term, ψ = ±1 per node (model.SignTerm):
+        κ = ψλ with a selection (column, λ), else the band's κ_ψ(s)."""
+        amplitude, groups = self._amplitude(block, term, y)
+        kappa_grad = np.zeros((y.shape[0], self.width))
+        if selection is not None:  # the point a·λ of Filippov's set: c = a·ψλ
+            column, lam = selection
+            kappa_grad[:, column] = psi
+            return _SignPart(psi * lam, kappa_grad, amplitude, groups)
+        s, ds = self._switch(block, term, y)
+        kappa, slope = _band_kappa(term.band, s, psi)
+        if slope is not None:
+            kappa_grad[:, : self.args] = slope[:, None] * ds
+        return _SignPart(kappa, kappa_grad, amplitude, groups)
+
+    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray] | None]:
+        """For each sign term of block b: (its column in y = (x, u, λ), its λ), or None (band)."""
+        if not self.p:
+            return [None] * len(self.blocks[b].signs)
+        columns = [k for k, (block, _) in zip(self.sign_columns, self.sign_terms) if block == b]
+        return [(self.args + k, lam[:, k]) for k in columns]
+
+    def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,
+              maxes: list[tuple[np.ndarray, np.ndarray]] | None = None,
+              selections: list | None = None) -> _Side:
+        """All groups of `block` at ψ (N, k); `maxes` reuses evaluated max-groups."""
+        if maxes is None:
+            maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        ell = np.einsum("nk,nk->n", z[:, list(block.coords)], psi)
+        max_parts = [_Piece(np.einsum("nqk,nk->nq", f, psi), np.einsum("nqkd,nk->nqd", jac, psi)) for f, jac in maxes]
+        min_parts = [_Piece(*self._min_group(block, group, y, psi)) for group in block.min_groups]
+        selections = selections or [None] * len(block.signs)
+        sign_parts = [self._sign_part(block, term, y, psi[:, 0], sel) for term, sel in zip(block.signs, selections)]
+        for part in max_parts:
+            ell -= part.values.max(axis=1)
+        for part in min_parts:
+            ell -= part.values.min(axis=1)
+        for part in sign_parts:
+            ell -= part.kappa * part.amplitude
+        return _Side(psi, ell, max_parts, min_parts, sign_parts)
+
+    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> list[_Side]:
+        """A one-coordinate block at ψ = +1 and ψ = −1."""
+        maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        ones = np.ones((y.shape[0], 1))
+        return [self._side(block, y, z, ones, maxes, selections), self._side(block, y, z, -ones, maxes, selections)]
+
+    def _state_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> _Side:
+        """ψ ∈ {−1, +1}: ψ* in closed form (the nearer violated end of the interval)."""
+        plus, minus = self._sides_1d(block, y, z, selections)
+        return _Side.choose(plus.ell >= minus.ell, plus, minus)
+
+    def _state_sphere(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:
+        """ψ ∈ S_k: ψ* searched numerically, vectorized over nodes (Remark 5.1), once per
+        iterate: the last few ψ* are kept per block under the exact bytes of their inputs
+        (y, z_b and the sample count), so a repeated iterate reuses its ψ* and different
+        inputs never do."""
+        nodes, k = y.shape[0], block.size
+        zb = z[:, list(block.coords)]
+        maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        key = b"".join([np.int64([self.psi_samples, *y.shape, *zb.shape]).tobytes(),
+                        np.ascontiguousarray(y, dtype=float).tobytes(), np.ascontiguousarray(zb, dtype=float).tobytes()])
+        memo = self._psi_memo.setdefault(id(block), [])
+        psi = next((found for inputs, found in memo if inputs == key), None)
+        if psi is None:
+
+            def ell(psi: np.ndarray) -> np.ndarray:  # psi (N, M, k) -> (N, M)
+                count = psi.shape[1]
+                value = np.einsum("nk,nmk->nm", zb, psi)
+                for f, _ in maxes:
+                    value -= _reduce_last(np.maximum, np.einsum("nqk,nmk->nmq", f, psi))
+                if block.min_groups:
+                    y_rep = y if count == 1 else np.repeat(y, count, axis=0)
+                    flat = psi.reshape(nodes * count, k)
+                    for group in block.min_groups:
+                        g, _ = group.pieces(y_rep, flat)
+                        value -= _reduce_last(np.minimum, g.reshape(nodes, count, -1))
+                return value
+
+            psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples)
+            memo.insert(0, (key, psi))
+            del memo[4:]
+        return self._side(block, y, z, psi.copy(), maxes)
+
+    def _block_states(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[_Side]:
+        """Every block at its ψ*."""
+        return [
+            self._state_1d(block, y, z, self._block_selections(b, lam)) if block.size == 1
+            else self._state_sphere(block, y, z)
+            for b, block in enumerate(self.blocks)
+        ]
+
+    def _interval_distance(self, b: int, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """h_b = max(0, ℓ(+1), ℓ(−1)) of a one-coordinate block from the pieces' values alone:
+        :meth:`_state_1d`'s h, bit for bit, with the pieces that do not depend on ψ evaluated
+        once, in its order (a NaN names the same piece)."""
+        block, nodes = self.blocks[b], y.shape[0]
+
+        def minima(psi: float) -> list[np.ndarray]:
+            return [_reduce_last(np.minimum, self._min_group(block, group, y, np.full((nodes, 1), psi))[0])
+                    for group in block.min_groups]
+
+        maxes = [self._max_group(block, group, y)[0][:, :, 0] for group in block.max_groups]
+        upper = minima(1.0)
+        signs = [(term, selection, self._amplitude(block, term, y)[0],
+                  None if selection is not None else self._switch(block, term, y)[0])
+                 for term, selection in zip(block.signs, self._block_selections(b, lam))]
+        lower = minima(-1.0)
+
+        def ell(psi: float, mins: list[np.ndarray]) -> np.ndarray:
+            """ℓ(ψ) = zψ − c(F_b, ψ), as :meth:`_side` sums it."""
+            value = z[:, block.coords[0]] * psi
+            for f in maxes:
+                value -= _reduce_last(np.maximum, f * psi)
+            for g in mins:
+                value -= g
+            for term, selection, amplitude, s in signs:
+                value -= (psi * selection[1] if selection is not None else _band_kappa(term.band, s, psi)[0]) * amplitude
+            return value
+
+        return np.maximum(0.0, np.maximum(ell(1.0, upper), ell(-1.0, lower)))
+
+    def _embed(self, grads: np.ndarray) -> np.ndarray:
+        """Gradients in y = (x, u) or (x, u, λ) placed in the x-, u- (and λ-) slots of ξ's row."""
+        out = np.zeros(grads.shape[:-1] + (self.dim,))
+        out[..., : self.n] = grads[..., : self.n]
+        out[..., 2 * self.n : self.n + grads.shape[-1]] = grads[..., self.n :]
+        return out
+
+
+def _reduce_last(ufunc: np.ufunc, values: np.ndarray) -> np.ndarray:
+    """ufunc over the last (short) axis, one column at a time: `values.max(axis=-1)` for
+    np.maximum, several times faster for a few pieces and many nodes, same values (NaN too)."""
+    out = values[..., 0].copy()
+    for column in range(1, values.shape[-1]):
+        ufunc(out, values[..., column], out=out)
+    return out
+
+
+def _band_kappa(band: float, s: np.ndarray, psi: np.ndarray | float) -> tuple[np.ndarray, np.ndarray | None]:
+    """κ_ψ(s) of a sign term without a selection (:class:`~qdframe.model.SignTerm`) and
+    dκ/ds (None where it is 0): band β = inf, the whole interval a·[−1, 1] everywhere (a
+    term on its own surface); β > 0, κ = 1 − 2·S(u), u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³
+    (C¹); β = 0, Filippov's exact sign, the whole interval only at s = 0."""
+    if np.isinf(band):
+        return np.ones_like(s), None
+    if band > 0:
+        u = np.clip(-psi * s / band, 0.0, 1.0)
+        return 1.0 - 2.0 * u * u * (3.0 - 2.0 * u), 12.0 * u * (1.0 - u) * psi / band
+    return np.where(psi * s >= 0, 1.0, -1.0), None

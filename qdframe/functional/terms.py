@@ -1,0 +1,222 @@
+"""The functional's values: φ, χ, ω, υ, σ, the cost, I and the objective; the ray.
+
+Paper (3.13), (3.14), (3.14'), (3.17), with the scheme's weights w_k and cumulative
+integral Z = ∫_0^t z (:class:`~qdframe.grid.Grid`, from the scheme's rule):
+
+    φ = ½ Σ_k w_k Σ_b h_b(x_k, z_k)²      χ = ½ Σ_{j∈J} (x0_j + Z_{N−1,j} − xT_j)²
+    ω = ½ Σ_k w_k ‖e(x_k)‖²               υ = ½ Σ_k w_k ‖x_k − x0 − Z_k‖²
+    σ = ½ Σ_k w_k Σ_i (λ_ik − clip(λ_ik + c·s_i(y_k), −1, 1))²
+
+I = φ + χ + ω + υ + σ; the objective is ∫cost + λ·I with a cost (Example 7.1), else I.
+:meth:`Values.ray` is the objective along a ray, what a line search minimizes.
+:meth:`Values.residuals` are the pointwise checks of a trajectory behind `solved`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .pieces import _reduce_last
+
+
+@dataclass(frozen=True)
+class Terms:
+    """Values of the functional's terms at one iterate."""
+
+    phi: float
+    chi: float
+    omega: float
+    upsilon: float
+    sigma: float  # the selections' natural-map term (0 without exact sign terms)
+    cost: float
+    I: float
+    objective: float
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Checks of a trajectory that do not depend on the functional's weighting."""
+
+    boundary_error: float  # max_j |x_j(T) − xT_j| and max_i |x_i(T) − x_i(0)| (periodic), read from x itself
+    inclusion_residual: float  # max_k max_b h_b(x_k, z_k)
+    surface_error: float | None  # max_k ‖e(x_k)‖_∞
+    consistency_error: float  # max_k |x_k − x0 − Z_k|
+    selection_residual: float | None  # max |λ − clip(λ + s, −1, 1)|: λ ∈ Sgn(s) to this (None: no selections)
+
+
+class Values:
+    """The terms' values at ξ (mixed into :class:`~qdframe.functional.Functional`)."""
+
+    def terms(self, xi: np.ndarray) -> Terms:
+        """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
+        x, z = self.split(xi)
+        phi, omega, sigma, cost = self._set_terms(xi)
+        chi = 0.5 * float(np.sum(self._end_residual(x, z) ** 2))
+        upsilon = 0.5 * self._integral(np.sum(self._consistency(x, z) ** 2, axis=1))
+        total = phi + chi + omega + upsilon + sigma
+        objective = cost + self.penalty * total if self.cost is not None else total
+        return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective)
+
+    def objective(self, xi: np.ndarray) -> float:
+        return self.terms(xi).objective
+
+    def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
+        """γ ↦ the objective at ξ + γG, what a line search minimizes (paper (180)).
+
+        χ + υ is quadratic in γ (the end residual x0 + ∫z − xT and the consistency residual
+        x − x0 − Z are affine in ξ): it is found here once, and each trial γ evaluates only
+        the set pieces, φ's distances h, ω's surface, σ's natural map and the cost. Equal to
+        `objective(ξ + γG)` to rounding; a trial where the model is NaN/inf raises as
+        `objective` does.
+        """
+        x, z = self.split(xi)
+        dx, dz = self.split(direction)
+        zero = np.zeros_like(dx)
+        quadratic = _Parabola.along(  # υ and χ: each (r(ξ), r's change per unit γ, w)
+            (self._consistency(x, z), self._consistency(dx, dz), self.weights[:, None]),
+            (self._end_residual(x, z), self._end_residual(dx, dz) - self._end_residual(zero, zero), 1.0),
+        )
+
+        def objective(gamma: float) -> float:
+            phi, omega, sigma, cost = self._set_terms(xi + gamma * direction)
+            total = phi + quadratic(gamma) + omega + sigma
+            return cost + self.penalty * total if self.cost is not None else total
+
+        return objective
+
+    def _set_terms(self, xi: np.ndarray) -> tuple[float, float, float, float]:
+        """φ, ω, σ and the cost at ξ, the terms not quadratic in ξ, from the pieces' values."""
+        x, z = self.split(xi)
+        y, lam = self.arguments(xi), self.selections(xi)
+        distances = [self._interval_distance(b, y, z, lam) if block.size == 1 else self._state_sphere(block, y, z).h
+                     for b, block in enumerate(self.blocks)]
+        phi = 0.5 * self._integral(sum(h**2 for h in distances))
+        omega = 0.5 * self._integral(np.sum(self._surface(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
+        sigma = 0.5 * self._integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.p else 0.0
+        cost = self._integral(self._cost_integrand(y)) if self.cost is not None else 0.0
+        return phi, omega, sigma, cost
+
+    def _integral(self, values: np.ndarray) -> float:
+        """Σ_k w_k·values_k (an elementwise sum: a BLAS dot goes multi-threaded above ~1e4 nodes)."""
+        return float(np.sum(self.weights * values))
+
+    def boundary_error(self, xi: np.ndarray) -> float:
+        """max |x_j(T) − xT_j| over J and |x_i(T) − x_i(0)| over the periodic P, read from the
+        trajectory x itself (0 if both are empty). χ measures x0 + ∫z instead; the two differ
+        by the consistency error at T."""
+        x = xi[:, : self.n]
+        end = np.concatenate([x[-1, self.end] - self.model.end_values, x[-1, self.periodic] - x[0, self.periodic]])
+        return float(np.max(np.abs(end))) if end.size else 0.0
+
+    def residuals(self, xi: np.ndarray) -> Residuals:
+        x, z = self.split(xi)
+        h = np.max([np.max(state.h) for state in self._block_states(self.arguments(xi), z, self.selections(xi))])
+        surface_error = None
+        if self.surface is not None:
+            surface_error = float(np.max(np.abs(self._surface(x)[0])))
+        return Residuals(
+            boundary_error=self.boundary_error(xi),
+            inclusion_residual=float(h),
+            surface_error=surface_error,
+            consistency_error=float(np.max(np.abs(self._consistency(x, z)))),
+            selection_residual=float(np.max(np.abs(self.selection_residual(xi, scale=1.0)[0]))) if self.p else None,
+        )
+
+    def selection_residual(self, xi: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The natural map r = λ − clip(λ + c·s(y), −1, 1) of every sign term, (N, p), and one
+        element of its generalized Jacobian in y = (x, u, λ), (N, p, n + m + p). r = 0 exactly
+        when λ ∈ Sgn(s). `scale` is c (default: the functional's `selection_scale`)."""
+        c = self.selection_scale if scale is None else scale
+        y, lam = self.arguments(xi), self.selections(xi)
+        nodes = y.shape[0]
+        residual = np.empty((nodes, self.p))
+        jacobian = np.zeros((nodes, self.p, self.width))
+        for k, (b, term) in enumerate(self.selection_terms):
+            s, ds = self._switch(self.blocks[b], term, y)
+            moved = lam[:, k] + c * s
+            inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
+            residual[:, k] = lam[:, k] - np.clip(moved, -1.0, 1.0)
+            jacobian[:, k, : self.args] = -c * inside[:, None] * ds
+            jacobian[:, k, self.args + k] = 1.0 - inside
+        return residual, jacobian
+
+    def _natural_map(self, y: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """σ's r = λ − clip(λ + c·s(y), −1, 1), (N, p): :meth:`selection_residual` without its Jacobian."""
+        c = self.selection_scale
+        return np.stack([lam[:, k] - np.clip(lam[:, k] + c * self._switch(self.blocks[b], term, y)[0], -1.0, 1.0)
+                         for k, (b, term) in enumerate(self.selection_terms)], axis=1)
+
+    def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
+        """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
+        y, lam = self.arguments(xi), self.selections(xi)
+        bounds: list[tuple[np.ndarray, np.ndarray] | None] = []
+        for b, block in enumerate(self.blocks):
+            if block.size != 1:
+                bounds.append(None)
+                continue
+            zero = np.zeros((y.shape[0], self.n))
+            plus, minus = self._sides_1d(block, y, zero, self._block_selections(b, lam))  # ℓ(ψ) = −c(F, ψ) at z = 0
+            bounds.append((minus.ell, -plus.ell))
+        return bounds
+
+    def consistency(self, xi: np.ndarray) -> np.ndarray:
+        """x − x0 − ∫_0^t z at every node, (N, n)."""
+        return self._consistency(*self.split(xi))
+
+    def end_residual(self, xi: np.ndarray) -> np.ndarray:
+        """x_j(0) + ∫_0^T z_j − xT_j for j ∈ J, then ∫_0^T z_i (= x_i(T) − x_i(0)) for i ∈ P."""
+        return self._end_residual(*self.split(xi))
+
+    def _end_residual(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        if not (self.end.size or self.periodic.size):
+            return np.zeros(0)
+        fixed = x[0, self.end] + self.grid.integral(z[:, self.end]) - self.model.end_values
+        return np.concatenate([fixed, self.grid.integral(z[:, self.periodic])])
+
+    def _consistency(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """x_k − x(t_0) − ∫_0^{t_k} z (x(t_0) = x0 where given)."""
+        return x - x[:1] - self.grid.cumulative(z)
+
+    def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        e, de = self.surface.function(x)  # type: ignore[union-attr]
+        self._check("surface", e, (x.shape[0], None))
+        self._check("surface Jacobian", de, (x.shape[0], e.shape[1], self.n))
+        return e, de
+
+    def surface_values(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """e(x) (N, o) and ∂e/∂x (N, o, n); requires a surface."""
+        return self._surface(self.split(xi)[0])
+
+    def _cost_integrand(self, x: np.ndarray) -> np.ndarray:
+        total = np.zeros(x.shape[0])
+        for fn in self.cost.max_groups:  # type: ignore[union-attr]
+            total += _reduce_last(np.maximum, self._scalar_pieces(fn, x, "cost max-group")[0])
+        for fn in self.cost.min_groups:  # type: ignore[union-attr]
+            total += _reduce_last(np.minimum, self._scalar_pieces(fn, x, "cost min-group")[0])
+        return total
+
+
+@dataclass(frozen=True)
+class _Parabola:
+    """q(γ) = ½ Σ w‖r + γs‖² of affine residuals along a ray, in vertex form
+    q* + a·(γ − γ*)², a = ½ Σ w‖s‖²: both terms are ≥ 0, so q keeps the accuracy of a
+    direct evaluation where it is small (a·γ² + b·γ + c loses it to cancellation)."""
+
+    minimum: float  # q*
+    curvature: float  # a
+    vertex: float  # γ*
+
+    @classmethod
+    def along(cls, *terms: tuple[np.ndarray, np.ndarray, np.ndarray | float]) -> "_Parabola":
+        """Σ over the terms (r, s, w) of ½ Σ w·(r + γs)², w broadcast to r's shape."""
+        slope = sum(float(np.sum(w * r * s)) for r, s, w in terms)  # q'(0)
+        second = sum(float(np.sum(w * s * s)) for _, s, w in terms)  # q''
+        vertex = -slope / second if second > 0 else 0.0
+        minimum = 0.5 * sum(float(np.sum(w * (r + vertex * s) ** 2)) for r, s, w in terms)
+        return cls(minimum, 0.5 * second, vertex)
+
+    def __call__(self, gamma: float) -> float:
+        return self.minimum + self.curvature * (gamma - self.vertex) ** 2
