@@ -18,6 +18,7 @@ MOVED = [
     ("qdframe.bench", "qdframe.bench.directions",  # the old module qdframe.bench is the package's .directions
      ("BenchRow", "Instance", "PAPER_MODELS", "degenerate_instances", "installed_directions", "paper_instances")),
     ("qdframe.benchmarks", "qdframe.bench", ("Case", "SUITES", "plan", "run_sweep", "write_report")),
+    ("qdframe.psi", "qdframe.functional.psi", ("best_sample", "maximize_on_sphere", "sphere_samples")),
 ]
 
 

@@ -6,7 +6,7 @@ The support function of a block (paper (support), (supf), (subf)) is
 
 evaluated here for all nodes at once and checked (shape, finiteness: a NaN names its
 piece and node). ψ* = argmax_ψ ℓ(ψ): in closed form (ψ = ±1) for a one-coordinate block,
-searched on S_k (:mod:`qdframe.psi`, Remark 5.1) for a block of k coordinates, once per
+searched on S_k (:mod:`.psi`, Remark 5.1) for a block of k coordinates, once per
 iterate. h_b = max(0, ℓ(ψ*)) is the distance of z_b from F_b (paper (3.13)).
 """
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import ModelOutputError
 from ..model import SetBlock
-from ..psi import maximize_on_sphere
+from .psi import maximize_on_sphere
 
 
 @dataclass

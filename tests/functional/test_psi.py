@@ -1,4 +1,4 @@
-"""ψ* on S_k (qdframe.psi): the chunked, memoized search gives the same ψ*, the same
+"""ψ* on S_k (qdframe.functional.psi): the chunked, memoized search gives the same ψ*, the same
 δ-active pieces and the same solves as the original batched scan, kept here as the reference."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from qdframe.functional import Functional
 from qdframe.functional.assembly import _delta_active
 from qdframe.grid import Grid
 from qdframe.models.paper_sets import Paper72Sets
-from qdframe.psi import _tangent_basis, _golden_on_circle, sphere_samples
+from qdframe.functional.psi import _tangent_basis, _golden_on_circle, sphere_samples
 from qdframe.sets import Ball, SetModel, intersection
 
 S2_MODELS = ["paper-7.2", "paper-7.2-sets", "intersecting-balls"]  # intersecting-balls: qdframe-mechanics

@@ -1,0 +1,124 @@
+"""ψ*: the maximizer of ℓ(ψ) = <z, ψ> − c(F(x), ψ) over the unit sphere S_k.
+
+For a block of k ≥ 2 coordinates (paper Remark 5.1, Example 7.2) ψ* has no closed
+form. We sample S_k, keep the best sample per node, then refine by golden-section
+search along great circles through the current point, cycling over an orthonormal
+tangent basis — all vectorized over nodes. For k = 2 this is an exact 1-D search
+in the angle.
+
+The scan evaluates values only, a chunk of samples at a time (at most
+``CHUNK`` node-sample pairs per call of ℓ), so its memory is bounded by a few arrays
+of the nodes' size instead of growing with nodes × samples; it keeps the first best
+sample, as one ``argmax`` over all samples would.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+CHUNK = 1 << 16  # node-sample pairs per evaluation of ℓ in the scan
+
+
+def sphere_samples(k: int, count: int) -> np.ndarray:
+    """Deterministic, roughly uniform unit vectors in R^k: (count, k)."""
+    if k == 2:
+        angle = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
+        return np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    rng = np.random.default_rng(12345 + k)
+    points = rng.standard_normal((count, k))
+    return points / np.linalg.norm(points, axis=1, keepdims=True)
+
+
+def maximize_on_sphere(
+    objective: Callable[[np.ndarray], np.ndarray],
+    nodes: int,
+    k: int,
+    samples: int = 128,
+    sweeps: int | None = None,
+    iterations: int = 40,
+) -> np.ndarray:
+    """argmax over ψ ∈ S_k of objective, for every node at once.
+
+    objective(psi) takes psi of shape (nodes, M, k) and returns values (nodes, M).
+    Returns ψ* of shape (nodes, k).
+    """
+    grid = sphere_samples(k, samples)
+    psi = grid[best_sample(objective, grid, nodes)]
+    spacing = 2.0 * np.pi / samples if k == 2 else np.pi / samples ** (1.0 / (k - 1))
+    sweeps = (1 if k == 2 else 4) if sweeps is None else sweeps
+    for sweep in range(sweeps):
+        width = 2.0 * spacing / (4.0**sweep)
+        for tangent in _tangent_basis(psi):
+            psi = _golden_on_circle(objective, psi, tangent, width, iterations)
+    return psi
+
+
+def best_sample(objective: Callable[[np.ndarray], np.ndarray], grid: np.ndarray, nodes: int) -> np.ndarray:
+    """Index (nodes,) of the first sample of `grid` (M, k) with the largest value at each
+    node — ``argmax`` over all M samples, NaN counting as the largest — evaluated
+    CHUNK node-sample pairs at a time."""
+    count, k = grid.shape
+    step = max(1, min(count, CHUNK // max(nodes, 1)))
+    best = np.zeros(nodes, dtype=int)
+    top = np.full(nodes, -np.inf)
+    for start in range(0, count, step):
+        chunk = grid[start : start + step]
+        values = objective(np.broadcast_to(chunk, (nodes, chunk.shape[0], k)))
+        for column in range(chunk.shape[0]):  # a later sample wins only if strictly larger, or the first NaN
+            value = values[:, column]
+            better = (value > top) | (np.isnan(value) & ~np.isnan(top))
+            best[better] = start + column
+            top[better] = value[better]
+    return best
+
+
+def _tangent_basis(psi: np.ndarray) -> list[np.ndarray]:
+    """k − 1 orthonormal tangent vectors at each ψ: list of (nodes, k)."""
+    nodes, k = psi.shape
+    if k == 2:
+        return [np.stack([-psi[:, 1], psi[:, 0]], axis=1)]
+    # Householder reflection mapping e_1 to ψ: its other columns span the tangent space.
+    e1 = np.zeros(k)
+    e1[0] = 1.0
+    v = psi - e1
+    norm2 = np.einsum("ij,ij->i", v, v)
+    safe = norm2 > 1e-24
+    basis = []
+    for j in range(1, k):
+        ej = np.zeros(k)
+        ej[j] = 1.0
+        coef = np.where(safe, 2.0 * v[:, j] / np.where(safe, norm2, 1.0), 0.0)
+        basis.append(ej - coef[:, None] * v)
+    return basis
+
+
+def _golden_on_circle(objective, psi, tangent, width, iterations) -> np.ndarray:
+    """Maximize along ψ cos θ + tangent sin θ, θ ∈ [−width, width], per node."""
+
+    def point(theta: np.ndarray) -> np.ndarray:
+        return psi * np.cos(theta)[:, None] + tangent * np.sin(theta)[:, None]
+
+    def value(theta: np.ndarray) -> np.ndarray:
+        return objective(point(theta)[:, None, :])[:, 0]
+
+    lo = np.full(psi.shape[0], -width)
+    hi = np.full(psi.shape[0], width)
+    a = hi - _GOLDEN * (hi - lo)
+    b = lo + _GOLDEN * (hi - lo)
+    fa, fb = value(a), value(b)
+    for _ in range(iterations):
+        left = fa >= fb  # maximum in [lo, b]
+        hi = np.where(left, b, hi)
+        lo = np.where(left, lo, a)
+        new_a = np.where(left, hi - _GOLDEN * (hi - lo), b)
+        new_b = np.where(left, a, lo + _GOLDEN * (hi - lo))
+        moved = np.where(left, new_a, new_b)
+        f_moved = value(moved)
+        fa, fb = np.where(left, f_moved, fb), np.where(left, fa, f_moved)
+        a, b = new_a, new_b
+    theta = 0.5 * (lo + hi)
+    best = np.where(value(theta) >= value(np.zeros_like(theta)), theta, 0.0)
+    return point(best)
