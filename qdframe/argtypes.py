@@ -27,26 +27,26 @@ def integer(minimum: int) -> Callable[[str], int]:
     return parse
 
 
-def positive_float(text: str) -> float:
-    """A positive finite number."""
+def _number(text: str, positive: bool) -> float:
+    """A finite number (> 0 if `positive`), or an error saying which was expected."""
+    what = "a positive finite number" if positive else "a finite number"
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+        value = np.nan
+    if not np.isfinite(value) or (positive and value <= 0):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
     return value
+
+
+def positive_float(text: str) -> float:
+    """A positive finite number."""
+    return _number(text, positive=True)
 
 
 def finite_float(text: str) -> float:
     """Any finite number."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not np.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
+    return _number(text, positive=False)
 
 
 def vector(text: str) -> list[float]:
