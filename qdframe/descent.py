@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from . import adaptive, certify, switches
 from .directions.base import DirectionSolver
@@ -393,7 +394,18 @@ def descend(
     x(t_0) = x0 where given (a start's row 0 is set to it); a NaN/inf of the model at an
     iterate raises ModelOutputError with the state there (:func:`_located`), one at a
     trial point of the line search only rejects that point (:func:`solve`).
+
+    BLAS runs on one thread meanwhile (threadpoolctl): the work per call is a reduction
+    over the nodes or a small per-node product, which a multi-threaded BLAS splits into
+    pieces too small to pay for the threads, and stalls on when another process holds a
+    core (`qdframe bench scale`, docs/benchmarks.md).
     """
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _descend(functional, solver, search, options, progress, start)
+
+
+def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
+             progress: ProgressCallback | None, start: np.ndarray | None) -> SolveResult:
     clock = time.perf_counter()
     solver.start(functional)
     xi = functional.initial_point() if start is None else np.array(start, dtype=float)

@@ -198,3 +198,20 @@ def test_the_iteration_budget_covers_all_grids():
 def test_bad_continuation_names_the_field(continuation):
     with pytest.raises(qdframe.InputError, match="continuation|nodes"):
         qdframe.solve("paper-7.2", nodes=201, continuation=continuation)
+
+
+def test_the_descent_runs_blas_on_one_thread():
+    # a length-N reduction in a multi-threaded BLAS stalls when another process holds a core
+    from threadpoolctl import threadpool_info
+
+    from qdframe.directions.native import NativeDirection
+
+    seen = []
+
+    class Recording(NativeDirection):
+        def compute(self, functional, xi, delta):
+            seen.extend(pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas")
+            return super().compute(functional, xi, delta)
+
+    qdframe.solve("paper-7.1", nodes=11, direction=Recording(), max_iter=2, continuation="none", estimate=False)
+    assert seen and set(seen) == {1}
