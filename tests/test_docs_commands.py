@@ -42,6 +42,9 @@ NOT_RUN = {
     # machine with two dask workers; the quick suite runs the same code (and runs here and in
     # tests/bench/test_bench_run.py)
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
+    # every path and paper model at N = 1001, 10001, 100001: 10 minutes on the 2-core machine;
+    # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
+    "qdframe bench scale": "a 10-minute measurement",
 }
 """Commands parsed but not run, and why."""
 
