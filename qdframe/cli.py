@@ -167,6 +167,11 @@ def _list(args: argparse.Namespace) -> int:
     return 0
 
 
+SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "gamma_max", "continuation", "scheme", "signs",
+                 "selection_scale", "residual_tol", "accuracy", "max_nodes")
+"""Options of `qdframe solve` passed to :func:`qdframe.solve` under their own names."""
+
+
 def _solve(args: argparse.Namespace) -> int:
     from .descent import load_model, make_direction, solve
     from .directions.base import with_options
@@ -187,26 +192,9 @@ def _solve(args: argparse.Namespace) -> int:
         print(f"solving {model.name} {grid} with {args.direction}, budget {args.max_iter} iterations …",
               end="", file=sys.stderr, flush=True)
     try:
-        result = solve(
-            model,
-            nodes=args.nodes,
-            direction=direction,
-            line_search=args.line_search,
-            max_iter=args.max_iter,
-            tol=args.tol,
-            delta=args.delta,
-            eps=args.eps,
-            gamma_max=args.gamma_max,
-            continuation=args.continuation,
-            progress=_progress_printer(args.max_iter) if show_progress else None,
-            scheme=args.scheme,
-            signs=args.signs,
-            selection_scale=args.selection_scale,
-            residual_tol=args.residual_tol,
-            accuracy=args.accuracy,
-            max_nodes=args.max_nodes,
-            estimate=not args.no_estimate,
-        )
+        result = solve(model, direction=direction, estimate=not args.no_estimate,
+                       progress=_progress_printer(args.max_iter) if show_progress else None,
+                       **{name: getattr(args, name) for name in SOLVE_OPTIONS})
     finally:  # end the progress line, also before an error's line
         if show_progress:
             print(file=sys.stderr)

@@ -170,18 +170,8 @@ def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler", "to be used with --executor dask", args.scheduler)
-    sweep = plan(
-        suite=args.suite,
-        models=args.models,
-        directions=args.directions,
-        line_searches=args.line_searches,
-        nodes=args.nodes,
-        peers=args.peers,
-        max_iter=args.max_iter,
-        time_limit_s=args.time_limit,
-        accuracy=args.accuracy,
-        bvp_tols=args.bvp_tols,
-    )
+    options = ("suite", "models", "directions", "line_searches", "nodes", "peers", "max_iter", "accuracy", "bvp_tols")
+    sweep = plan(time_limit_s=args.time_limit, **{name: getattr(args, name) for name in options})
     say = _say(args.quiet)
     command = shlex.join(["qdframe", *argv])
     if say:
