@@ -1,4 +1,9 @@
-"""Solve Example 7.1 from Python, read the result, write JSON and a figure.
+"""Solve Example 7.1 from Python with the paper's method, read the result, write JSON and a figure.
+
+The paper's method (direction "native", golden line search) on 101 nodes, as in the
+paper's Section 7: it ends `stationary`, the paper's own stopping rule, with the summary
+saying which conditions are left unmet and by how much; `qdframe.solve(model)` with the
+default direction (gauss-newton) solves it (README, "The paper's method against gauss-newton").
 
     python examples/solve_paper.py [--out DIR]    (DIR: where the files go; default .)
 """

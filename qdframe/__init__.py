@@ -1,7 +1,9 @@
 """qdframe: trajectories of nonsmooth differential inclusions by quasidifferential descent.
 
-The three interfaces: :class:`InclusionModel` (qdframe.model), :class:`DirectionSolver`
-(qdframe.directions.base) and :class:`LineSearch` (qdframe.line_searches.base).
+The four interfaces: :class:`InclusionModel` (qdframe.model), :class:`DirectionSolver`
+(qdframe.directions.base), :class:`LineSearch` (qdframe.line_searches.base) and
+:class:`~qdframe.schemes.base.Scheme` (qdframe.schemes); docs/architecture.md shows how a
+solve flows through them.
 """
 
 from .descent import DescentOptions, load_model, solve

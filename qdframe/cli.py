@@ -41,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks (anywhere on the command line)")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    lister = commands.add_parser("list", help="registered models, directions and line searches")
+    lister = commands.add_parser("list", help="registered models, schemes, directions and line searches")
     lister.add_argument("--json", nargs="?", const="-", metavar="FILE", help="write JSON (to stdout without FILE)")
 
     solve = commands.add_parser("solve", help="solve a model by quasidifferential descent")

@@ -11,7 +11,7 @@ x_p − x0 − Z_p is then the consistency residual of υ. The trapezoid rule (t
 implicit Euler and Radau IIA are such rules; :class:`~qdframe.grid.Grid` turns any of
 them into the cumulative integral, its adjoint and the sparse recursion used by
 gauss-newton. The mesh need not be uniform: adaptive solves (`accuracy=`) refine it
-where the error estimate is large and place mesh points on switch times. A third scheme
+where the error estimate is large and place mesh points on switch times. A new scheme
 is one small class registered under the entry-point group ``qdframe.schemes``.
 """
 
