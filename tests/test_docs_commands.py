@@ -42,9 +42,9 @@ NOT_RUN = {
     # machine with two dask workers; the quick suite runs the same code (and runs here and in
     # tests/bench/test_bench_run.py)
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
-    # every path and paper model at N = 1001, 10001, 100001: 10 minutes on the 2-core machine;
+    # every path and paper model at N = 1001, 10001, 100001: 4 minutes on the idle 2-core machine (20:25:56 to 20:29:52, 2026-11-23);
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
-    "qdframe bench scale": "a 10-minute measurement",
+    "qdframe bench scale": "a 4-minute measurement",
 }
 """Commands parsed but not run, and why."""
 
