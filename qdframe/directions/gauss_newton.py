@@ -39,10 +39,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import BackendError
 from .base import Direction, DirectionSolver
+from .kkt import solve_kkt
 
 if TYPE_CHECKING:
     from ..functional import Functional
@@ -291,13 +291,7 @@ class _System:
         return d, float(self.value - model), slope
 
     def _solve_kkt(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> np.ndarray:
-        E = self.constraints
-        kkt = sp.bmat([[hessian, E.T], [E, None]], format="csc")
-        rhs = np.concatenate([-gradient, np.zeros(E.shape[0])])
-        solution = spla.spsolve(kkt, rhs)
-        if not np.all(np.isfinite(solution)):
-            raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
-        return solution[: self.size]
+        return solve_kkt(hessian, self.constraints, gradient)[0]
 
     def _solve_cost_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float]:
         """The step as a sparse QP in [d | t | s] (Clarabel):

@@ -1,0 +1,31 @@
+"""The sparse symmetric KKT systems of the `gauss-newton` step.
+
+Every linear solve of a step is one system
+
+    [ H  Cᵀ ] [ d ]   [ −g ]
+    [ C  0  ] [ ν ] = [  c ]
+
+with H = λJᵀJ + μW (+ the active hinges' λAᵀA) positive definite on the null space of
+the constraint rows C (the scheme's recursion, the fixed start, and any ties the step
+adds), ν their multipliers. This module is the one place that factors it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import BackendError
+
+
+def solve_kkt(hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarray,
+              rhs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """d and ν of the system above (rhs: c, zeros when None), by SuperLU (COLAMD ordering)."""
+    size, rows = hessian.shape[0], constraints.shape[0]
+    kkt = sp.bmat([[hessian, constraints.T], [constraints, None]], format="csc")
+    right = np.concatenate([-gradient, np.zeros(rows) if rhs is None else rhs])
+    solution = spla.spsolve(kkt, right)
+    if not np.all(np.isfinite(solution)):
+        raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
+    return solution[:size], solution[size:]
