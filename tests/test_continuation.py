@@ -105,9 +105,10 @@ def test_an_iterate_round_trips_through_interpolation_on_its_own_grid():
     assert np.array_equal(_interpolate(functional, _iterate(functional, xi)), xi)
 
 
-@pytest.mark.parametrize("nodes, grids, per_grid", [(101, [101], [3]), (1001, [101, 301, 1001], [3, 0, 0])])
+@pytest.mark.parametrize("nodes, grids, per_grid", [(101, [101], [2]), (1001, [101, 301, 1001], [2, 0, 0])])
 def test_gauss_newton_solves_paper_71_as_before(nodes, grids, per_grid):
-    """Measured before the budget shares: solved in 3 iterations, all on 101 nodes."""
+    """Solved in 2 iterations, all on 101 nodes (3 while Clarabel solved the step QP to 1e-12;
+    the active-set step is exact)."""
     result = qdframe.solve("paper-7.1", nodes=nodes)
-    assert result.status == "solved" and result.iterations == 3 and result.message == ""
+    assert result.status == "solved" and result.iterations == 2 and result.message == ""
     assert result.options["grids"] == grids and result.options["iterations_per_grid"] == per_grid

@@ -127,14 +127,15 @@ def test_a_nan_gradient_stops_the_descent_the_same_way():
 
 def test_a_nan_when_the_direction_evaluates_the_accepted_iterate_names_its_state():
     """A direction that meets the model's NaN at the accepted iterate itself (here simulated
-    after two steps): the error gives the state of that iterate at the node."""
+    after one step, gauss-newton solving paper-7.1 in two): the error gives the state of that
+    iterate at the node."""
     from qdframe.directions.gauss_newton import GaussNewton
 
     class Failing(GaussNewton):
         name = "failing"
 
         def compute(self, functional, xi, delta):
-            if self._state.get("calls", 0) == 2:
+            if self._state.get("calls", 0) == 1:
                 self.seen = xi.copy()
                 raise ModelOutputError("model 'x': a piece returned a non-finite value at node 3",
                                        label="block vel' max-group \"vel'\"", node=3, nonfinite=True)
@@ -150,7 +151,7 @@ def test_a_nan_when_the_direction_evaluates_the_accepted_iterate_names_its_state
         qdframe.solve(model, nodes=11, direction=direction)
     message = str(info.value)
     node, t, state = _located(message, model)
-    assert node == 3 and np.isclose(t, 0.3) and "of the iterate after 2 iterations" in message
+    assert node == 3 and np.isclose(t, 0.3) and "of the iterate after 1 iterations" in message
     assert np.allclose([state["x1"], state["x2"]], direction.seen[3, :2], rtol=1e-5, atol=1e-12)
 
 

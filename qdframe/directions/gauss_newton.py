@@ -22,23 +22,29 @@ with μ adapted to the success of the previous step (ratio of actual to predicte
 decrease). The distance residuals h_b = max(0, ℓ) are kept one-sided: each side of each
 set enters as a squared hinge max(0, ℓ_side + ∇ℓ_side·d)², so a z on (or inside) the
 boundary of F is neither ignored (the Jacobian element of h is 0 there) nor pulled onto
-it; the model is exact for piecewise-linear sets. Without a cost the step is found by a
-primal active-set iteration, a few sparse symmetric KKT solves (SuperLU). With a
-nonsmooth cost (Example 7.1) the cost model is the max of the linearizations of all
-pieces of each max-group — the δ-active ones and those that become active within the
-step, so the model is exact for piecewise-linear costs such as |x1| — and the
-linearized active piece of each min-group, and
-the step is a sparse QP solved with Clarabel (the hinges as slacks s ≥ 0,
-s ≥ ℓ_side + ∇ℓ_side·d).
+it; the model is exact for piecewise-linear sets. A nonsmooth cost (Example 7.1) enters
+as the max of the linearizations of all pieces of each max-group, so the model is exact
+for piecewise-linear costs such as |x1|, and the linearized active piece of each
+min-group.
+
+The step minimizes that model (a convex QP) by a primal-dual active-set iteration: a
+guess of the violated sides and of the pieces tied at each node's maximum, one sparse
+KKT solve (:mod:`.kkt`) per guess, until the guess agrees with its own step to within
+ACTIVE_SET_TOL of the predicted decrease. The first guess is the set the previous step
+settled on, so near a solution one solve per step is the rule. Where the iteration does
+not settle, Clarabel solves the same model as a QP (the hinges and the max-pieces as
+inequalities), and its active set becomes the next step's first guess.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from ..errors import BackendError
 from .base import Direction, DirectionSolver
@@ -75,9 +81,9 @@ class GaussNewton(DirectionSolver):
         self._adapt(xi, value)
         system = _System(functional, xi, delta)
         mu = self._state["mu"]
-        step_ext, predicted, slope = system.solve(mu)
+        step_ext, predicted, slope = system.solve(mu, warm=self._state.get("active_set"))
         step = system.unknowns_step(step_ext)
-        self._state.update(previous_value=value, predicted=predicted, xi=xi, step=step)
+        self._state.update(previous_value=value, predicted=predicted, xi=xi, step=step, active_set=system.settled)
         per_node = np.linalg.norm(step, axis=1)
         return Direction(step=step, deviation=per_node, slope=slope,
                          stationary=bool(predicted <= 1e-14 * max(value, 1e-300) or not np.any(per_node)))
@@ -103,8 +109,28 @@ class GaussNewton(DirectionSolver):
             state["mu"] = min(state["mu"] * 2.0, self.mu_max)
 
 
+MAX_GUESSES = 30  # KKT solves of the active-set iteration before Clarabel takes over
+ACTIVE_SET_TOL = 1e-3  # violations a guess leaves out may change its model by this × the predicted decrease
+ROUNDING = 1e-12  # a side or piece within this × the largest predicted value of its kind counts as either state
+THETA_TOL = 1e-9  # a tie weight θ above −this counts as ≥ 0
+TIE_SOFTNESS = 1e-14  # ε of the tie rows (kkt.solve_kkt's soft): a tie on a fixed x_i(0) repeats a row of E
+IDENTIFY_TOL = 1e-7  # what counts as violated or tied in the QP's step (an interior point's precision)
 QP_TOL = 1e-12  # Clarabel's gap and feasibility tolerances for the step QP
 QP_RETRY_TOL = 1e-10  # the second try after InsufficientProgress at QP_TOL
+
+
+@dataclass(frozen=True)
+class ActiveSet:
+    """What a step's active-set iteration settled on: the hinge sides taken as violated
+    (one flag per row of :meth:`_System._hinges`) and, per cost max-group, the pieces tied
+    at the maximum at each node ((N, m) flags). The next step starts from it."""
+
+    sides: np.ndarray
+    ties: list[np.ndarray]
+
+    def fits(self, values: np.ndarray, max_groups: list) -> bool:
+        return self.sides.shape == values.shape and len(self.ties) == len(max_groups) and all(
+            tie.shape == piece_values.shape for tie, (piece_values, _) in zip(self.ties, max_groups))
 
 
 class _System:
@@ -257,93 +283,207 @@ class _System:
         )
         return matrix, np.concatenate(values)
 
-    def solve(self, mu: float) -> tuple[np.ndarray, float, float]:
-        """The step (extended), the predicted decrease of the objective, and its slope."""
+    def solve(self, mu: float, warm: "ActiveSet | None" = None) -> tuple[np.ndarray, float, float]:
+        """The step (extended), the predicted decrease of the objective, and its slope.
+
+        warm: the active set the previous step settled on (same grid), the first guess of
+        this one; the set this step settles on is left in `self.settled` (None when the
+        Clarabel QP found the step)."""
         J, r, lam = self.jacobian, self.residual, self.penalty
         hessian = (lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc()
         gradient = lam * (J.T @ r)
-        if self.cost is None:
-            step = self._solve_hinged(hessian, gradient)
-            if step is not None:
-                return step
+        self.settled = None
+        step = self._solve_active_set(hessian, gradient, warm)
+        if step is not None:
+            return step
         return self._solve_cost_qp(hessian, gradient)
 
-    def _solve_hinged(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float] | None:
-        """min ½dᵀHd + gᵀd + (λ/2)·Σ max(0, v + A d)² s.t. E d = 0, by a primal active-set
-        (semismooth Newton) iteration: one sparse KKT solve per guess of the violated
-        sides, until the guess repeats. None if it does not settle (the QP takes over)."""
-        lam = self.penalty
+    def _cold_start(self, values: np.ndarray) -> "ActiveSet":
+        """The first guess without a previous step: the sides violated now, and each cost
+        max-group's largest piece at every node."""
+        max_groups = self.cost[0] if self.cost is not None else []
+        ties = []
+        for piece_values, _ in max_groups:
+            tie = np.zeros(piece_values.shape, dtype=bool)
+            tie[np.arange(self.nodes), np.argmax(piece_values, axis=1)] = True
+            ties.append(tie)
+        return ActiveSet(values > 0, ties)
+
+    def _solve_active_set(self, hessian: sp.csc_matrix, gradient: np.ndarray,
+                          warm: "ActiveSet | None") -> tuple[np.ndarray, float, float] | None:
+        """The step model (the QP of :meth:`_solve_cost_qp`) minimized by a primal-dual
+        active-set (semismooth Newton) iteration, one sparse KKT solve per guess.
+
+        A guess has two parts. Hinges: the sides taken as violated, each adding
+        (λ/2)·(v + A d)² to the model (h_b² = Σ_side max(0, ℓ_side)²; a block has at most one
+        violated side unless its set is empty). Cost: per node and max-group the set S of
+        pieces tied at the maximum; a reference piece q₀ ∈ S adds w_k ∇a_q₀·d and the others
+        the ties (∇a_q − ∇a_q₀)·d_k = a_q₀ − a_q as constraint rows, whose multipliers ν give
+        the subgradient's weights θ_q = ν_q / w_k, θ_q₀ = 1 − Σ θ_q.
+
+        A guess is accepted when its own step agrees with it where that matters: no side it
+        takes as violated is predicted satisfied (beyond ROUNDING) — that would pull z onto
+        the boundary of F, which the one-sided hinge exists to avoid — and every θ ≥ −THETA_TOL;
+        the violations it leaves out and the pieces above the tie may change the model by at
+        most ACTIVE_SET_TOL × its predicted decrease (they under-count, and the next step sees
+        them). With both parts exact the step is the model's minimizer (KKT; the model is
+        convex). Otherwise the sides are re-chosen by their predicted sign, pieces with θ < 0
+        leave S and pieces above the tie join it. Why not exact everywhere: on 7.1 (the
+        solution on the kink of |x1| and z1 on a side of F at every node) the guesses
+        otherwise chatter, one side per guess, for 30 guesses.
+
+        None if no guess is accepted in MAX_GUESSES solves, or a tie system is singular
+        (Clarabel takes over)."""
+        lam, w = self.penalty, self.f.weights
         matrix, values = self._hinges()
-        active = values > 0
-        for _ in range(30):
-            A = matrix[active]
-            d = self._solve_kkt((hessian + lam * (A.T @ A)).tocsc(), gradient + lam * (A.T @ values[active]))
+        max_groups, min_groups = self.cost if self.cost is not None else ([], [])
+        min_linear = self._min_linear(min_groups)
+        guess = warm if warm is not None and warm.fits(values, max_groups) else self._cold_start(values)
+        active, ties = guess.sides, [tie.copy() for tie in guess.ties]
+        y_cols = self.y_cols()
+        for _ in range(MAX_GUESSES):
+            try:
+                d, thetas = self._guess_step(hessian, gradient + min_linear, matrix, values, active, ties, max_groups)
+            except BackendError:  # a singular tie system (dependent ties): the QP decides
+                return None
             predicted_sides = values + matrix @ d
-            settled = predicted_sides > 0
-            if np.array_equal(settled, active):
+            decrease = self._decrease(d, predicted_sides, min_linear, max_groups, min_groups)
+            # how far the guess is from its own step, beyond rounding: sides in the wrong state
+            # and pieces above the tie (the model's error from them), and tie weights θ below 0
+            rounding = ROUNDING * max(np.abs(values).max(initial=0.0), np.abs(predicted_sides).max(initial=0.0))
+            wrong = np.where(active, np.minimum(predicted_sides + rounding, 0.0), np.maximum(predicted_sides - rounding, 0.0))
+            error = 0.5 * lam * float(wrong @ wrong)
+            exact_where_needed = not np.any(active & (wrong != 0.0))  # no side pulled onto its boundary
+            dy = d[y_cols]
+            new_ties = []
+            for (piece_values, grads), tie, theta in zip(max_groups, ties, thetas):
+                predicted = piece_values + np.einsum("kqp,kp->kq", grads, dy)
+                top = np.max(np.where(tie, predicted, -np.inf), axis=1, keepdims=True)
+                above = predicted - top - ROUNDING * max(np.abs(piece_values).max(), np.abs(predicted).max())
+                error += float(w @ np.maximum(np.max(np.where(tie, -np.inf, above), axis=1), 0.0))
+                exact_where_needed = exact_where_needed and bool(np.all(theta[tie] >= -THETA_TOL))
+                keep = tie & (theta >= 0.0)
+                keep[np.arange(self.nodes), np.argmax(np.where(tie, theta, -np.inf), axis=1)] = True  # S ≠ ∅
+                new_ties.append(keep | (~tie & (above > 0.0)))
+            if exact_where_needed and error <= ACTIVE_SET_TOL * max(decrease, 0.0):
                 break
-            active = settled
+            active, ties = np.where(wrong != 0.0, predicted_sides > 0.0, active), new_ties
         else:
             return None
-        J = self.jacobian
-        model = 0.5 * lam * (np.sum((self.residual + J @ d) ** 2) + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
-        slope = float(gradient @ d) + lam * float(np.maximum(values, 0.0) @ (matrix @ d))
-        return d, float(self.value - model), slope
+        self.settled = ActiveSet(active, ties)
+        return d, decrease, self._slope(d, gradient + min_linear, max_groups, matrix, values)
 
-    def _solve_kkt(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> np.ndarray:
-        return solve_kkt(hessian, self.constraints, gradient)[0]
+    def _guess_step(self, hessian: sp.csc_matrix, gradient: np.ndarray, matrix: sp.csr_matrix, values: np.ndarray,
+                    active: np.ndarray, ties: list[np.ndarray], max_groups: list) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The minimizer of the model with the sides `active` taken as violated and the cost's
+        pieces tied as `ties` say (one KKT solve), and each max-group's weights θ (N, m)."""
+        lam, w, y_cols, E = self.penalty, self.f.weights, self.y_cols(), self.constraints
+        A = matrix[active]
+        H = (hessian + lam * (A.T @ A)).tocsc()
+        g = gradient + lam * (A.T @ values[active])
+        rows, rhs, tie_index = [], [], []
+        for (piece_values, grads), tie in zip(max_groups, ties):
+            ref = np.argmax(tie, axis=1)  # q₀: the first piece of S
+            np.add.at(g, y_cols.ravel(), (w[:, None] * grads[np.arange(self.nodes), ref]).ravel())
+            node, piece = np.nonzero(tie & (np.arange(tie.shape[1]) != ref[:, None]))
+            tie_index.append((node, piece, ref))
+            rows.append(sp.csr_matrix(
+                ((grads[node, piece] - grads[node, ref[node]]).ravel(),
+                 (np.repeat(np.arange(node.size), y_cols.shape[1]), y_cols[node].ravel())),
+                shape=(node.size, self.size)))
+            rhs.append(piece_values[node, ref[node]] - piece_values[node, piece])
+        C = sp.vstack([E, *rows], format="csr") if rows else E
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", spla.MatrixRankWarning)
+            soft = np.concatenate([np.zeros(E.shape[0]), np.full(C.shape[0] - E.shape[0], TIE_SOFTNESS)])
+            d, nu = solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft)
+        thetas, offset = [], E.shape[0]
+        for tie, (node, piece, ref) in zip(ties, tie_index):
+            theta = np.zeros(tie.shape)
+            theta[node, piece] = nu[offset : offset + node.size] / w[node]
+            offset += node.size
+            theta[np.arange(self.nodes), ref] = 1.0 - theta.sum(axis=1)
+            thetas.append(theta)
+        return d, thetas
+
+    def _identify(self, d: np.ndarray, predicted_sides: np.ndarray, max_groups: list) -> "ActiveSet":
+        """The active set a step found by the QP points to (the next step's first guess):
+        the sides it leaves violated and the pieces within IDENTIFY_TOL of its maximum."""
+        tol = IDENTIFY_TOL * np.abs(predicted_sides).max(initial=0.0)
+        dy = d[self.y_cols()]
+        ties = []
+        for piece_values, grads in max_groups:
+            predicted = piece_values + np.einsum("kqp,kp->kq", grads, dy)
+            top = predicted.max(axis=1, keepdims=True)
+            ties.append(predicted >= top - IDENTIFY_TOL * max(np.abs(predicted).max(), np.abs(piece_values).max()))
+        return ActiveSet(predicted_sides > tol, ties)
+
+    def _min_linear(self, min_groups: list) -> np.ndarray:
+        """Σ_k w_k ∇b_p*·d_k: each cost min-group (concave) linearized at its active piece."""
+        min_linear = np.zeros(self.size)
+        y_cols = self.y_cols()
+        for values, grads in min_groups:
+            pick = grads[np.arange(self.nodes), np.argmin(values, axis=1)]
+            np.add.at(min_linear, y_cols.ravel(), (self.f.weights[:, None] * pick).ravel())
+        return min_linear
+
+    def _decrease(self, d: np.ndarray, predicted_sides: np.ndarray, min_linear: np.ndarray,
+                  max_groups: list, min_groups: list) -> float:
+        """I(ξ) minus the step model at d: (λ/2)(‖r + Jd‖² + Σ max(0, v + Ad)²) plus the cost's
+        max-groups at their linearized maximum and min-groups at their linearized active piece."""
+        w, dy = self.f.weights, d[self.y_cols()]
+        model = 0.5 * self.penalty * (np.sum((self.residual + self.jacobian @ d) ** 2)
+                                      + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
+        model += sum(float(w @ (values + np.einsum("kqp,kp->kq", grads, dy)).max(axis=1)) for values, grads in max_groups)
+        model += float(min_linear @ d) + sum(float(w @ values.min(axis=1)) for values, _ in min_groups)
+        return float(self.value - model)
+
+    def _slope(self, d: np.ndarray, gradient: np.ndarray, max_groups: list, matrix: sp.csr_matrix,
+               values: np.ndarray) -> float:
+        """The objective's one-sided derivative along d: the smooth part, the cost's δ-active
+        max-pieces and the violated sides (values are the sides' √w·ℓ)."""
+        w, dy = self.f.weights, d[self.y_cols()]
+        slope = float(gradient @ d) + self.penalty * float(np.maximum(values, 0.0) @ (matrix @ d))
+        for piece_values, grads in max_groups:
+            active = piece_values >= piece_values.max(axis=1, keepdims=True) - self.delta
+            slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
+        return slope
 
     def _solve_cost_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float]:
-        """The step as a sparse QP in [d | t | s] (Clarabel):
+        """The step model as a sparse QP in [d | t | s] (Clarabel), where the active-set
+        iteration did not settle (the same model: one slack per side of every block):
 
-        min ½dᵀHd + gᵀd + Σ_k w_k t_k + (λ/2)·Σ w_k s_bk² + Σ_k w_k ∇b_p*·d_k
+        min ½dᵀHd + gᵀd + Σ_k w_k t_k + (λ/2)·Σ s² + Σ_k w_k ∇b_p*·d_k
         s.t. E d = 0;  a_q + ∇a_q·d_k ≤ t_k (every piece q of each cost max-group);
-             ℓ_side + ∇ℓ_side·d_k ≤ s_bk and 0 ≤ s_bk (every side of every block).
+             √w_k(ℓ_side + ∇ℓ_side·d_k) ≤ s and 0 ≤ s (every side of every block).
         """
         import clarabel
 
         nodes, w, lam = self.nodes, self.f.weights, self.penalty
-        y_cols, z_cols = self.y_cols(), self.z_cols()
+        y_cols = self.y_cols()
+        matrix, values = self._hinges()
         max_groups, min_groups = self.cost if self.cost is not None else ([], [])
-        min_linear = np.zeros(self.size)
-        for values, grads in min_groups:  # concave: linearize the active piece
-            pick = grads[np.arange(nodes), np.argmin(values, axis=1)]
-            np.add.at(min_linear, y_cols.ravel(), (w[:, None] * pick).ravel())
-        n_t, n_s = nodes * len(max_groups), nodes * len(self.sides)
+        min_linear = self._min_linear(min_groups)
+        n_t, n_s = nodes * len(max_groups), values.size
         t0, s0 = self.size, self.size + n_t
         total = s0 + n_s
-        rows, cols, vals, rhs = [], [], [], []
-        count = 0
-
-        def inequality(col: np.ndarray, val: np.ndarray, bound: np.ndarray) -> None:
-            """Rows col/val (R, E) with Σ val·v ≤ bound (R,)."""
-            nonlocal count
-            rows.append(np.repeat(count + np.arange(bound.size), col.shape[1]))
-            cols.append(col.ravel())
-            vals.append(val.ravel())
-            rhs.append(bound)
-            count += bound.size
-
-        for g, (values, grads) in enumerate(max_groups):  # the max of every piece's linearization
-            node, piece = np.nonzero(np.ones_like(values, dtype=bool))
-            inequality(np.concatenate([y_cols[node], (t0 + g * nodes + node)[:, None]], axis=1),
-                       np.concatenate([grads[node, piece], -np.ones((node.size, 1))], axis=1),
-                       -values[node, piece])
-        for b, block in enumerate(self.sides):
-            s_cols = (s0 + b * nodes + np.arange(nodes))[:, None]
-            for ell, dell_dy, psi in block.sides:
-                inequality(np.concatenate([y_cols, z_cols[:, list(block.coords)], s_cols], axis=1),
-                           np.concatenate([dell_dy, psi, -np.ones((nodes, 1))], axis=1), -ell)
-            inequality(s_cols, -np.ones((nodes, 1)), np.zeros(nodes))
-        slack_weights = lam * np.tile(w, len(self.sides))
-        P = sp.block_diag([hessian, sp.csc_matrix((n_t, n_t)), sp.diags(slack_weights)], format="csc")
+        pieces = []
+        for g, (piece_values, grads) in enumerate(max_groups):  # the max of every piece's linearization
+            node, piece = np.nonzero(np.ones_like(piece_values, dtype=bool))
+            count = node.size
+            pieces.append((sp.csr_matrix(
+                (np.concatenate([grads[node, piece], -np.ones((count, 1))], axis=1).ravel(),
+                 (np.repeat(np.arange(count), y_cols.shape[1] + 1),
+                  np.concatenate([y_cols[node], (t0 + g * nodes + node)[:, None]], axis=1).ravel())),
+                shape=(count, total)), -piece_values[node, piece]))
+        slack = sp.hstack([sp.csr_matrix((n_s, s0)), -sp.eye(n_s)])
+        hinges = sp.hstack([matrix, sp.csr_matrix((n_s, total - self.size))]) + slack
+        inequalities = sp.vstack([part for part, _ in pieces] + [hinges, slack], format="csc")
+        P = sp.block_diag([hessian, sp.csc_matrix((n_t, n_t)), lam * sp.eye(n_s)], format="csc")
         q = np.concatenate([gradient + min_linear, np.tile(w, len(max_groups)), np.zeros(n_s)])
         E = self.constraints
-        A = sp.vstack([
-            sp.hstack([E, sp.csr_matrix((E.shape[0], total - self.size))]),
-            sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, total)),
-        ], format="csc")
-        b_vec = np.concatenate([np.zeros(E.shape[0])] + rhs)
+        A = sp.vstack([sp.hstack([E, sp.csr_matrix((E.shape[0], total - self.size))]), inequalities], format="csc")
+        b_vec = np.concatenate([np.zeros(E.shape[0])] + [bound for _, bound in pieces] + [-values, np.zeros(n_s)])
         scale = 1.0 / max(self.value, 1e-6)  # the QP objective near O(1): Clarabel's gap tolerances are absolute
 
         def clarabel_solve(tol: float):
@@ -353,7 +493,7 @@ class _System:
                 setattr(settings, name, tol)
             return clarabel.DefaultSolver(
                 sp.triu(scale * P, format="csc"), scale * q, A, b_vec,
-                [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(count)], settings,
+                [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(inequalities.shape[0])], settings,
             ).solve()
 
         solution = clarabel_solve(QP_TOL)
@@ -367,30 +507,14 @@ class _System:
         if str(solution.status) not in ("Solved", "AlmostSolved"):
             raise BackendError(f"direction 'gauss-newton': the step QP (Clarabel) ended with status {solution.status}")
         v = np.asarray(solution.x)
-        d, t, slack = v[: self.size], v[t0:s0], v[s0:]
-        J = self.jacobian
-        model = (
-            0.5 * lam * np.sum((self.residual + J @ d) ** 2)
-            + 0.5 * float(slack_weights @ slack**2)
-            + float(np.tile(w, len(max_groups)) @ t)
-            + float(min_linear @ d)
-            + sum(float(w @ values.min(axis=1)) for values, _ in min_groups)
-        )
-        # slope of the objective along d (the cost's and φ's one-sided derivatives)
-        dy = d[y_cols]
-        slope = float(gradient @ d + min_linear @ d)
-        for values, grads in max_groups:
-            active = values >= values.max(axis=1, keepdims=True) - self.delta
-            slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
-        for block in self.sides:
-            h = block.h
-            ells = np.array([side[0] for side in block.sides])
-            dz = d[z_cols[:, list(block.coords)]]
-            rates = np.array([np.einsum("kp,kp->k", dy_, dy) + np.einsum("kc,kc->k", psi, dz)
-                              for _, dy_, psi in block.sides])
-            rate = np.max(np.where(ells >= h[None, :] - 1e-14, rates, -np.inf), axis=0)
-            slope += lam * float(w @ np.where(h > 0, h * np.where(np.isfinite(rate), rate, 0.0), 0.0))
-        return d, float(self.value - model), slope
+        d, t, s = v[: self.size], v[t0:s0], v[s0:]
+        self.settled = self._identify(d, values + matrix @ d, max_groups)
+        # the predicted decrease from the QP's own objective at its solution: t and s bound the
+        # pieces' max and the hinges from above, to the solver's tolerance
+        model = (0.5 * lam * (np.sum((self.residual + self.jacobian @ d) ** 2) + float(s @ s))
+                 + float(np.tile(w, len(max_groups)) @ t) + float(min_linear @ d)
+                 + sum(float(w @ piece_values.min(axis=1)) for piece_values, _ in min_groups))
+        return d, float(self.value - model), self._slope(d, gradient + min_linear, max_groups, matrix, values)
 
     def unknowns_step(self, step: np.ndarray) -> np.ndarray:
         """The step on ξ = [x | z | u] per node (dropping Z)."""

@@ -20,10 +20,14 @@ from ..errors import BackendError
 
 
 def solve_kkt(hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarray,
-              rhs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """d and ν of the system above (rhs: c, zeros when None), by SuperLU (COLAMD ordering)."""
+              rhs: np.ndarray | None = None, soft: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """d and ν of the system above (rhs: c, zeros when None), by SuperLU (COLAMD ordering).
+
+    soft: ε ≥ 0 per constraint row, the block −diag(ε) in place of 0 (C d − εν = c): a row
+    with ε > 0 holds to ε·ν, and rows that depend on others no longer make K singular."""
     size, rows = hessian.shape[0], constraints.shape[0]
-    kkt = sp.bmat([[hessian, constraints.T], [constraints, None]], format="csc")
+    corner = None if soft is None or not np.any(soft) else -sp.diags(soft)
+    kkt = sp.bmat([[hessian, constraints.T], [constraints, corner]], format="csc")
     right = np.concatenate([-gradient, np.zeros(rows) if rhs is None else rhs])
     solution = spla.spsolve(kkt, right)
     if not np.all(np.isfinite(solution)):
