@@ -205,14 +205,22 @@ class _System:
             rows.add(np.stack([z_cols[:, i], x_cols[:, j]], axis=1),
                      np.broadcast_to([1.0, -1.0], (self.nodes, 2)))
         points, base, increments = self.f.grid.recursion()
-        recursion = np.arange(points.size * n).reshape(points.size, n)  # one row per point p ≥ 1 and state
-        coo = increments.tocoo()  # −A_pj dz_j, row p − 1 of the restricted A
-        rows.add_entries(
-            np.concatenate([recursion.ravel(), recursion.ravel(), recursion[coo.row].ravel()]),
-            np.concatenate([Z_cols[points].ravel(), Z_cols[base].ravel(), z_cols[coo.col].ravel()]),
-            np.concatenate([np.ones(recursion.size), -np.ones(recursion.size), np.repeat(-coo.data, n)]),
-            recursion.size,
-        )
+        # one row per point p ≥ 1 and state: dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j, the row p − 1 of the
+        # restricted A padded with zeros to its longest row (a zero entry is left out)
+        increments = sp.csr_matrix(increments)
+        counts = np.diff(increments.indptr)
+        width = int(counts.max(initial=0))
+        place = np.arange(increments.nnz) - np.repeat(increments.indptr[:-1], counts)
+        terms = np.zeros((points.size, width), dtype=increments.indices.dtype)
+        weights = np.zeros((points.size, width))
+        row_of = np.repeat(np.arange(points.size), counts)
+        terms[row_of, place] = increments.indices
+        weights[row_of, place] = -increments.data
+        cols = np.concatenate([Z_cols[points][:, :, None], Z_cols[base][:, :, None],
+                               np.moveaxis(z_cols[terms], 1, 2)], axis=2)  # (points, n, 2 + width)
+        vals = np.concatenate([np.ones((points.size, 1)), -np.ones((points.size, 1)), weights], axis=1)
+        rows.add(cols.reshape(points.size * n, 2 + width),
+                 np.repeat(vals, n, axis=0))
         return rows.matrix()
 
     def _damping(self) -> np.ndarray:

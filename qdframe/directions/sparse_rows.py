@@ -21,6 +21,9 @@ import numpy as np
 import scipy.sparse as sp
 
 
+CHUNK = 1 << 15  # rows sorted at a time by RowBlocks.add
+
+
 class RowBlocks:
     """A CSR matrix with `columns` columns, one block of rows at a time (see the module)."""
 
@@ -33,14 +36,29 @@ class RowBlocks:
 
     def add(self, cols: np.ndarray, vals: np.ndarray) -> np.ndarray:
         """Append R rows with the entries `vals` (R, E) in the columns `cols` (R, E);
-        returns the new rows' indices (R,)."""
+        returns the new rows' indices (R,). Taken CHUNK rows at a time, so the sorting
+        copies stay bounded whatever R."""
         cols = np.asarray(cols)
-        vals = np.asarray(vals, dtype=float)
-        count, width = cols.shape
+        vals = np.broadcast_to(np.asarray(vals, dtype=float), cols.shape)
+        count = cols.shape[0]
+        for start in range(0, count, CHUNK):
+            self._add_rows(cols[start : start + CHUNK], vals[start : start + CHUNK])
+        first = self.rows
+        self.rows += count
+        return first + np.arange(count)
+
+    def _add_rows(self, cols: np.ndarray, vals: np.ndarray) -> None:
+        width = cols.shape[1]
         if width > 1:  # sort each row's columns (stably), then sum runs of equal columns left to right
-            order = np.argsort(cols, axis=1, kind="stable")
-            cols = np.take_along_axis(cols, order, axis=1)
-            vals = np.take_along_axis(vals, order, axis=1)
+            order = np.argsort(cols[0], kind="stable")  # the first row's order, usually every row's
+            sorted_cols = cols[:, order]
+            if np.all(sorted_cols[:, 1:] >= sorted_cols[:, :-1]):
+                cols, vals = sorted_cols, vals[:, order]
+            else:  # not every row's: sort each row
+                del sorted_cols
+                order = np.argsort(cols, axis=1, kind="stable")
+                cols = np.take_along_axis(cols, order, axis=1)
+                vals = np.take_along_axis(vals, order, axis=1)
             repeated = cols[:, 1:] == cols[:, :-1]  # entry j + 1 repeats entry j's column
             if repeated.any():
                 head = np.broadcast_to(np.arange(width), cols.shape).copy()  # each entry's run start
@@ -58,9 +76,6 @@ class RowBlocks:
         self._counts.append(np.count_nonzero(keep, axis=1))
         self._indices.append(cols[keep].astype(self._index_dtype(), copy=False))
         self._data.append(vals[keep])
-        first = self.rows
-        self.rows += count
-        return first + np.arange(count)
 
     def add_entries(self, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, count: int) -> None:
         """Append `count` rows given as entries (row within the block, column, value), any order."""
