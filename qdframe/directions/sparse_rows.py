@@ -9,7 +9,9 @@ kept as explicit zeros: at N = 1e5 on paper-7.3, two thirds of J's 12 million en
 
 :class:`RowBlocks` turns each block into compressed rows as it arrives, in the canonical
 form SciPy's conversion gives (column indices sorted within a row, duplicates summed
-from left to right), keeps only the nonzero entries, with 32-bit indices where they fit.
+from left to right: the same sum as SciPy's for an entry given twice, the most these
+matrices have, x_0's column in υ's first rows), keeps only the nonzero entries, with
+32-bit indices where they fit.
 Products with the matrix are then bit for bit those with SciPy's matrix: an entry that
 is exactly zero only ever adds an exact zero to a sum of finite numbers (and SciPy's
 sparse products drop zero results anyway).
