@@ -49,6 +49,7 @@ import scipy.sparse.linalg as spla
 from ..errors import BackendError
 from .base import Direction, DirectionSolver
 from .kkt import solve_kkt
+from .sparse_rows import RowBlocks
 
 if TYPE_CHECKING:
     from ..functional import Functional
@@ -147,9 +148,10 @@ class _System:
         self.penalty = functional.penalty
         self.value = functional.objective(xi)
         blocks = functional.distance_sides(xi)
-        self.equations = [block for block in blocks if block.equation]  # z_b = f_b(y): least squares
         self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
-        self.residual, self.jacobian = self._least_squares(xi)
+        # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
+        self.residual, self.jacobian = self._least_squares(xi, [block for block in blocks if block.equation])
+        del blocks
         self.constraints = self._constraints()
         self.cost = functional.cost_pieces(xi) if functional.cost is not None else None
 
@@ -173,21 +175,18 @@ class _System:
     def y_cols(self) -> np.ndarray:
         return np.concatenate([self.x_cols(), self.u_cols()], axis=1)
 
-    def _least_squares(self, xi: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+    def _least_squares(self, xi: np.ndarray, equations: list) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The residuals r and J (one generalized-Jacobian element) of υ, χ, ω, the point
+        sets' φ (`equations`) and σ, row blocks in that order."""
         f, nodes = self.f, self.nodes
         root_w = np.sqrt(f.weights)
-        rows, cols, vals, residuals = [], [], [], []
-        count = 0
+        rows = RowBlocks(self.size)  # J, its exactly-zero entries left out (:mod:`.sparse_rows`)
+        residuals = []
 
         def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
             """res: (R,), col/val: (R, E) entries of R new rows."""
-            nonlocal count
-            index = count + np.arange(res.size)
-            rows.append(np.repeat(index, col.shape[1]))
-            cols.append(col.ravel())
-            vals.append(val.ravel())
+            rows.add(col, val)
             residuals.append(res)
-            count += res.size
 
         consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
@@ -209,7 +208,7 @@ class _System:
                 np.repeat(x_cols[:, None, :], o, axis=1).reshape(nodes * o, self.n),
                 (root_w[:, None, None] * de).reshape(nodes * o, self.n))
         y_cols, z_cols = self.y_cols(), self.z_cols()
-        for block in self.equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
+        for block in equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
             (ell, dell_dy, psi), = block.sides
             add(root_w * ell, np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
                 root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
@@ -218,41 +217,37 @@ class _System:
             add((root_w[:, None] * r).ravel(),
                 np.repeat(y_cols[:, None, :], f.p, axis=1).reshape(nodes * f.p, -1),
                 (root_w[:, None, None] * dr).reshape(nodes * f.p, -1))
-        jacobian = sp.csr_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, self.size)
-        )
-        return np.concatenate(residuals), jacobian
+        return np.concatenate(residuals), rows.matrix()
 
     def _constraints(self) -> sp.csr_matrix:
         """E d = 0: dx_0 = 0 where x(t_0) is given, dZ_0 = 0, dz_i = dx_j for resolved states,
         dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j = 0 (the scheme's rule)."""
         n = self.n
         x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
+        rows = RowBlocks(self.size)
         fixed = np.concatenate([x_cols[0, self.f.start_given], Z_cols[0]])
-        rows = [np.arange(fixed.size)]
-        cols = [fixed]
-        vals = [np.ones(fixed.size)]
-        count = fixed.size
+        rows.add(fixed[:, None], np.ones((fixed.size, 1)))
         for i, j in self.f.resolved.items():  # dz_i = dx_j at every node
-            tie = count + np.arange(self.nodes)
-            rows += [tie, tie]
-            cols += [z_cols[:, i], x_cols[:, j]]
-            vals += [np.ones(self.nodes), -np.ones(self.nodes)]
-            count += self.nodes
+            rows.add(np.stack([z_cols[:, i], x_cols[:, j]], axis=1),
+                     np.broadcast_to([1.0, -1.0], (self.nodes, 2)))
         points, base, increments = self.f.grid.recursion()
-        recursion = count + np.arange(points.size * n).reshape(points.size, n)  # one row per point p ≥ 1 and state
-        for col, val in ((Z_cols[points], 1.0), (Z_cols[base], -1.0)):
-            rows.append(recursion.ravel())
-            cols.append(col.ravel())
-            vals.append(np.full(recursion.size, val))
-        coo = increments.tocoo()  # −A_pj dz_j, row p − 1 of the restricted A
-        rows.append(recursion[coo.row].ravel())
-        cols.append(z_cols[coo.col].ravel())
-        vals.append(np.repeat(-coo.data, n))
-        return sp.csr_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(count + recursion.size, self.size),
-        )
+        # one row per point p ≥ 1 and state: dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j, the row p − 1 of the
+        # restricted A padded with zeros to its longest row (a zero entry is left out)
+        increments = sp.csr_matrix(increments)
+        counts = np.diff(increments.indptr)
+        width = int(counts.max(initial=0))
+        place = np.arange(increments.nnz) - np.repeat(increments.indptr[:-1], counts)
+        terms = np.zeros((points.size, width), dtype=increments.indices.dtype)
+        weights = np.zeros((points.size, width))
+        row_of = np.repeat(np.arange(points.size), counts)
+        terms[row_of, place] = increments.indices
+        weights[row_of, place] = -increments.data
+        cols = np.concatenate([Z_cols[points][:, :, None], Z_cols[base][:, :, None],
+                               np.moveaxis(z_cols[terms], 1, 2)], axis=2)  # (points, n, 2 + width)
+        vals = np.concatenate([np.ones((points.size, 1)), -np.ones((points.size, 1)), weights], axis=1)
+        rows.add(cols.reshape(points.size * n, 2 + width),
+                 np.repeat(vals, n, axis=0))
+        return rows.matrix()
 
     def _damping(self) -> np.ndarray:
         """L² weights w_k on x, z, u (none on Z, which the constraints determine)."""
@@ -265,23 +260,16 @@ class _System:
         side and node (h_b = max(0, max_side ℓ)), as a matrix and the values √w_k·ℓ."""
         root_w = np.sqrt(self.f.weights)
         y_cols, z_cols = self.y_cols(), self.z_cols()
-        rows, cols, vals, values = [], [], [], []
-        count = 0
+        rows = RowBlocks(self.size)  # exactly-zero coefficients left out (:mod:`.sparse_rows`)
+        values = []
         for block in self.sides:
             block_cols = np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1)
             for ell, dell_dy, psi in block.sides:
-                coefficients = root_w[:, None] * np.concatenate([dell_dy, psi], axis=1)
-                rows.append(np.repeat(count + np.arange(self.nodes), block_cols.shape[1]))
-                cols.append(block_cols.ravel())
-                vals.append(coefficients.ravel())
+                rows.add(block_cols, root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
                 values.append(root_w * ell)
-                count += self.nodes
-        if not count:
+        if not rows.rows:
             return sp.csr_matrix((0, self.size)), np.zeros(0)
-        matrix = sp.csr_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(count, self.size)
-        )
-        return matrix, np.concatenate(values)
+        return rows.matrix(), np.concatenate(values)
 
     def solve(self, mu: float, warm: "ActiveSet | None" = None) -> tuple[np.ndarray, float, float]:
         """The step (extended), the predicted decrease of the objective, and its slope.

@@ -41,13 +41,22 @@ class Jacobians:
         y, z, lam = self.arguments(xi), self.split(xi)[1], self.selections(xi)
         out = []
         for b, block in enumerate(self.blocks):
-            sides = (self._sides_1d(block, y, z, self._block_selections(b, lam)) if block.size == 1
-                     else [self._state_sphere(block, y, z)])
-            point = (block.size == 1 and not sides[0].min_parts and (self.p or not block.signs)
-                     and all(part.values.shape[1] == 1 for part in sides[0].max_parts))
-            out.append(DistanceSides(block.coords, [(side.ell, side.gradient(self.width), side.psi)
-                                                    for side in sides[: 1 if point else None]], point))
+            if block.size != 1:
+                out.append(DistanceSides(block.coords, [self._side_terms(self._state_sphere(block, y, z))]))
+                continue
+            maxes = [self._max_group(block, group, y) for group in block.max_groups]
+            point = (not block.min_groups and (self.p or not block.signs)
+                     and all(f.shape[1] == 1 for f, _ in maxes))
+            selections = self._block_selections(b, lam)
+            ones = np.ones((y.shape[0], 1))
+            sides = [self._side_terms(self._side(block, y, z, psi, maxes, selections))
+                     for psi in ((ones,) if point else (ones, -ones))]  # a point: the ψ = +1 side alone
+            out.append(DistanceSides(block.coords, sides, point))
         return out
+
+    def _side_terms(self, side) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ℓ, ∂ℓ/∂y, ψ) of a side, the side's pieces let go."""
+        return side.ell, side.gradient(self.width), side.psi
 
     def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The cost's max-groups and min-groups: lists of (values (N, m), gradients (N, m, n + m))."""

@@ -91,13 +91,17 @@ class Values:
         """φ, ω, σ and the cost at ξ, the terms not quadratic in ξ, from the pieces' values."""
         x, z = self.split(xi)
         y, lam = self.arguments(xi), self.selections(xi)
-        distances = [self._interval_distance(b, y, z, lam) if block.size == 1 else self._state_sphere(block, y, z).h
-                     for b, block in enumerate(self.blocks)]
-        phi = 0.5 * self._integral(sum(h**2 for h in distances))
+        phi = 0.5 * self._integral(sum(h**2 for h in self._distances(y, z, lam)))
         omega = 0.5 * self._integral(np.sum(self._surface(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
         sigma = 0.5 * self._integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.p else 0.0
         cost = self._integral(self._cost_integrand(y)) if self.cost is not None else 0.0
         return phi, omega, sigma, cost
+
+    def _distances(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[np.ndarray]:
+        """h_b (N,) of every block from the pieces' values (no gradients): an interval's in
+        closed form, an S_k block's at its ψ*."""
+        return [self._interval_distance(b, y, z, lam) if block.size == 1 else self._state_sphere(block, y, z).h
+                for b, block in enumerate(self.blocks)]
 
     def _integral(self, values: np.ndarray) -> float:
         """Σ_k w_k·values_k (an elementwise sum: a BLAS dot goes multi-threaded above ~1e4 nodes)."""
@@ -113,7 +117,7 @@ class Values:
 
     def residuals(self, xi: np.ndarray) -> Residuals:
         x, z = self.split(xi)
-        h = np.max([np.max(state.h) for state in self._block_states(self.arguments(xi), z, self.selections(xi))])
+        h = np.max([np.max(h) for h in self._distances(self.arguments(xi), z, self.selections(xi))])
         surface_error = None
         if self.surface is not None:
             surface_error = float(np.max(np.abs(self._surface(x)[0])))
