@@ -99,15 +99,22 @@ class SimplexSum:
         n, groups, width, d = self.generators.shape
         if groups == 0:
             return self
-        order = np.argsort(~self.mask, axis=2, kind="stable")
-        mask = np.take_along_axis(self.mask, order, axis=2)
-        generators = np.take_along_axis(self.generators, order[..., None], axis=2)
-        counts = mask.sum(axis=2)
+        counts = self.mask.sum(axis=2)
         single = (counts <= 1).all(axis=0)
-        center = self.center + generators[:, single, 0, :].sum(axis=1)
+        # a one-generator group's point is its first active generator (its first, where none is):
+        # gathered alone, without reordering the whole (N, G, m, d) array
+        first = np.argmax(self.mask[:, single], axis=2).ravel()  # (N·S,)
+        rows = (np.arange(n)[:, None] * groups + np.flatnonzero(single)[None, :]).ravel()
+        picked = self.generators.reshape(n * groups, width, d)[rows, first]  # (N·S, d)
+        center = self.center + picked.reshape(n, -1, d).sum(axis=1)
         keep = ~single
-        new_width = int(counts[:, keep].max()) if keep.any() else 1
-        return SimplexSum(center, generators[:, keep, :new_width], mask[:, keep, :new_width])
+        if not keep.any():
+            return SimplexSum(center, self.generators[:, :0, :1], self.mask[:, :0, :1])
+        order = np.argsort(~self.mask[:, keep], axis=2, kind="stable")
+        mask = np.take_along_axis(self.mask[:, keep], order, axis=2)
+        generators = np.take_along_axis(self.generators[:, keep], order[..., None], axis=2)
+        new_width = int(counts[:, keep].max())
+        return SimplexSum(center, generators[:, :, :new_width], mask[:, :, :new_width])
 
     def scaled(self, factor: float | np.ndarray) -> "SimplexSum":
         """factor_k · P_k for a scalar or per-node factor ≥ 0."""
