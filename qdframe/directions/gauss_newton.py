@@ -42,7 +42,7 @@ import scipy.sparse as sp
 
 from ..errors import BackendError
 from .base import Direction, DirectionSolver
-from .kkt import solve_kkt
+from .kkt import KKTSolver, solve_kkt
 
 if TYPE_CHECKING:
     from ..functional import Functional
@@ -73,7 +73,7 @@ class GaussNewton(DirectionSolver):
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)
         self._adapt(xi, value)
-        system = _System(functional, xi, delta)
+        system = _System(functional, xi, delta, self._state.setdefault("kkt", KKTSolver()))
         mu = self._state["mu"]
         step_ext, predicted, slope = system.solve(mu)
         step = system.unknowns_step(step_ext)
@@ -110,8 +110,10 @@ QP_RETRY_TOL = 1e-10  # the second try after InsufficientProgress at QP_TOL
 class _System:
     """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node."""
 
-    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float) -> None:
+    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float,
+                 kkt: KKTSolver | None = None) -> None:
         self.f = functional
+        self.kkt = kkt or KKTSolver()  # the solve's KKT factorizer: its symbolic analysis is reused
         n, m = functional.n, functional.m + functional.p  # u and the selections λ: both enter y
         nodes = functional.grid.nodes
         self.n, self.m, self.nodes = n, m, nodes
@@ -291,7 +293,7 @@ class _System:
         return d, float(self.value - model), slope
 
     def _solve_kkt(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> np.ndarray:
-        return solve_kkt(hessian, self.constraints, gradient)[0]
+        return solve_kkt(hessian, self.constraints, gradient, solver=self.kkt)[0]
 
     def _solve_cost_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float]:
         """The step as a sparse QP in [d | t | s] (Clarabel):
