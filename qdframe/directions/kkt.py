@@ -69,12 +69,12 @@ class KKTSolver:
         if order is None:  # the analysis: SuperLU's COLAMD on the matched matrix, kept for later systems
             factor = _factor(kkt, "COLAMD")
             self._order = np.argsort(factor.perm_c)
-            self._factor_nnz = factor.L.nnz + factor.U.nnz
+            self._factor_nnz = factor.nnz  # L + U (not .L, .U: those build copies)
             self.analyses += 1
             solution = factor.solve(right[rows])
         else:
             factor = _factor(kkt, "NATURAL")
-            if factor.L.nnz + factor.U.nnz > REANALYSE_GROWTH * self._factor_nnz:
+            if factor.nnz > REANALYSE_GROWTH * self._factor_nnz:
                 self._order = None  # the pattern moved away from the analysed one: a new order next time
             solution = np.empty(size + count)
             solution[order] = factor.solve(right[rows[order]])
