@@ -38,17 +38,15 @@ inequalities), and its active set becomes the next step's first guess.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import BackendError
 from .base import Direction, DirectionSolver
-from .kkt import solve_kkt
+from .kkt import KKTSolver, solve_kkt
 from .sparse_rows import RowBlocks
 
 if TYPE_CHECKING:
@@ -80,7 +78,7 @@ class GaussNewton(DirectionSolver):
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)
         self._adapt(xi, value)
-        system = _System(functional, xi, delta)
+        system = _System(functional, xi, delta, self._state.setdefault("kkt", KKTSolver()))
         mu = self._state["mu"]
         step_ext, predicted, slope = system.solve(mu, warm=self._state.get("active_set"))
         step = system.unknowns_step(step_ext)
@@ -137,8 +135,10 @@ class ActiveSet:
 class _System:
     """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node."""
 
-    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float) -> None:
+    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float,
+                 kkt: KKTSolver | None = None) -> None:
         self.f = functional
+        self.kkt = kkt or KKTSolver()  # the solve's KKT factorizer: its symbolic analysis is reused
         n, m = functional.n, functional.m + functional.p  # u and the selections λ: both enter y
         nodes = functional.grid.nodes
         self.n, self.m, self.nodes = n, m, nodes
@@ -381,10 +381,9 @@ class _System:
                 shape=(node.size, self.size)))
             rhs.append(piece_values[node, ref[node]] - piece_values[node, piece])
         C = sp.vstack([E, *rows], format="csr") if rows else E
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", spla.MatrixRankWarning)
+        with np.errstate(all="ignore"):
             soft = np.concatenate([np.zeros(E.shape[0]), np.full(C.shape[0] - E.shape[0], TIE_SOFTNESS)])
-            d, nu = solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft)
+            d, nu = solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft, solver=self.kkt)
         thetas, offset = [], E.shape[0]
         for tie, (node, piece, ref) in zip(ties, tie_index):
             theta = np.zeros(tie.shape)

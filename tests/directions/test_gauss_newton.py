@@ -155,7 +155,9 @@ def test_the_active_set_step_minimizes_the_step_qp(model_index, seed, exact, mon
         assert np.abs(d - d_qp).max() <= 1e-5 * np.abs(d_qp).max()
     solves = []
     real = gn.solve_kkt
-    monkeypatch.setattr(gn, "solve_kkt", lambda *args: solves.append(1) or real(*args))
+    monkeypatch.setattr(gn, "solve_kkt", lambda *args, **kwargs: solves.append(1) or real(*args, **kwargs))
     again = _System(functional, xi, delta=1e-3)
     d_warm, predicted_warm, _ = again.solve(mu, warm=settled)
-    assert len(solves) == 1 and np.array_equal(d_warm, d) and predicted_warm == predicted
+    # the same step, to the rounding of another pivot order (a fresh KKTSolver's own analysis)
+    assert len(solves) == 1 and np.allclose(d_warm, d, rtol=0, atol=1e-9 * np.abs(d).max())
+    assert np.isclose(predicted_warm, predicted, rtol=1e-12)
