@@ -46,7 +46,7 @@ NOT_RUN = {
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
     "qdframe bench scale": "a 4-minute measurement",
     # paper-7.3 at N = 100001 with the default continuation: solved in 167 iterations, 889 s on
-    # the 2-core machine (2026-11-23); the same solve at N = 101 and 1001 runs in the tests
+    # the 2-core machine (2026-11-23); the same solve at N = 101 runs in tests/test_masses_and_signs.py
     "qdframe solve paper-7.3 --nodes 100001": "a 15-minute solve",
 }
 """Commands parsed but not run, and why."""
