@@ -1,9 +1,12 @@
 """The descent reproduces the paper's Examples 7.1 and 7.2 and reports honestly."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import qdframe
+import qdframe.directions.gauss_newton
 from qdframe.descent import grid_schedule, make_direction
 from qdframe.functional import Functional
 from qdframe.grid import Grid
@@ -215,3 +218,38 @@ def test_the_descent_runs_blas_on_one_thread():
 
     qdframe.solve("paper-7.1", nodes=11, direction=Recording(), max_iter=2, continuation="none", estimate=False)
     assert seen and set(seen) == {1}
+
+
+class _ShortSteps(qdframe.directions.gauss_newton.GaussNewton):
+    """gauss-newton's step cut to a fraction: the residuals shrink by that fraction per iteration."""
+
+    fraction = 1.0
+
+    def compute(self, functional, xi, delta):
+        full = super().compute(functional, xi, delta)
+        # what gauss-newton adapts μ by, for the cut step: its move and the model's decrease along it
+        self._state["step"] = self.fraction * self._state["step"]
+        self._state["predicted"] *= self.fraction * (2.0 - self.fraction)
+        return dataclasses.replace(full, step=self.fraction * full.step, slope=self.fraction * full.slope)
+
+
+@pytest.mark.parametrize("fraction, status", [(0.1, "solved"), (0.03, "stationary")])
+def test_with_i_below_tol_the_descent_goes_on_while_the_pointwise_checks_halve_every_20_iterations(fraction, status):
+    class Nearly72(type(qdframe.load_model("paper-7.2"))):
+        def initial_guess(self, t):  # a solution, but x off ∫z by 1e-6 at one node: I ≈ 1e-14 ≤ tol
+            z = np.tile([0.75, 0.5], (t.size, 1))
+            x = t[:, None] * z
+            x[t.size // 2] += 1e-6
+            return x, z
+
+    solver = _ShortSteps()
+    solver.fraction = fraction
+    result = qdframe.solve(Nearly72(), nodes=51, direction=solver, continuation="none", estimate=False)
+    assert result.history[0].I <= 1e-10
+    assert result.status == status
+    if status == "stationary":  # 0.97^20 > 1/2: the start and 20 iterates with I ≤ tol
+        assert result.iterations == 20
+        assert "shrank by less than 2× in 20 iterations" in result.message
+        assert "not pointwise: consistency" in result.message
+    else:  # 0.9 per iteration: 1e-6 → 1e-8 in about 44 iterations
+        assert 40 <= result.iterations <= 60
