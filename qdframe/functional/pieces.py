@@ -212,7 +212,8 @@ class Pieces:
         iterate: the last few ψ* are kept per block under a 256-bit BLAKE2b digest of their
         inputs' bytes (y, z_b and the sample count), so a repeated iterate reuses its ψ* and
         different inputs do not (a collision is as unlikely as one of BLAKE2b's), without
-        keeping a copy of each input (at N = 1e5, 3.2 MB per entry on paper-7.2)."""
+        keeping a copy of each input (at N = 1e5, 3.2 MB per entry on paper-7.2). A new
+        iterate's search starts from the ψ* used last (:mod:`.psi`'s warm start)."""
         nodes, k = y.shape[0], block.size
         zb = z[:, list(block.coords)]
         maxes = [self._max_group(block, group, y) for group in block.max_groups]
@@ -221,23 +222,28 @@ class Pieces:
         digest.update(np.ascontiguousarray(zb, dtype=float))
         key = digest.digest()
         memo = self._psi_memo.setdefault(id(block), [])
-        psi = next((found for inputs, found in memo if inputs == key), None)
-        if psi is None:
+        hit = next((i for i, (inputs, _) in enumerate(memo) if inputs == key), None)
+        if hit is not None:  # the last used first: the next iterate's warm start
+            memo.insert(0, memo.pop(hit))
+            psi = memo[0][1]
+        else:
 
-            def ell(psi: np.ndarray) -> np.ndarray:  # psi (N, M, k) -> (N, M)
+            def ell(psi: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:  # psi (n, M, k) -> (n, M)
                 count = psi.shape[1]
-                value = np.einsum("nk,nmk->nm", zb, psi)
+                y_at, zb_at = (y, zb) if at is None else (y[at], zb[at])
+                value = np.einsum("nk,nmk->nm", zb_at, psi)
                 for f, _ in maxes:
-                    value -= _reduce_last(np.maximum, np.einsum("nqk,nmk->nmq", f, psi))
+                    value -= _reduce_last(np.maximum, np.einsum("nqk,nmk->nmq", f if at is None else f[at], psi))
                 if block.min_groups:
-                    y_rep = y if count == 1 else np.repeat(y, count, axis=0)
-                    flat = psi.reshape(nodes * count, k)
+                    y_rep = y_at if count == 1 else np.repeat(y_at, count, axis=0)
+                    flat = psi.reshape(y_at.shape[0] * count, k)
                     for group in block.min_groups:
                         g, _ = group.pieces(y_rep, flat)
-                        value -= _reduce_last(np.minimum, g.reshape(nodes, count, -1))
+                        value -= _reduce_last(np.minimum, g.reshape(y_at.shape[0], count, -1))
                 return value
 
-            psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples)
+            # warm: from the ψ* found last for this block (the previous iterate, or trial point)
+            psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples, start=memo[0][1] if memo else None)
             memo.insert(0, (key, psi))
             del memo[4:]
         return self._side(block, y, z, psi.copy(), maxes)

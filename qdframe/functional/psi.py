@@ -10,6 +10,16 @@ The scan evaluates values only, a chunk of samples at a time (at most
 ``CHUNK`` node-sample pairs per call of ℓ), so its memory is bounded by a few arrays
 of the nodes' size instead of growing with nodes × samples; it keeps the first best
 sample, as one ``argmax`` over all samples would.
+
+Warm start: given the previous iterate's ψ* (`start`), a coarse check scans every
+CHECK_STRIDE-th sample of the grid (for k = 2; k/CHECK_STRIDE random ones for k > 2).
+Where its best direction lies within one check spacing of the start, the golden
+refinement runs from the start instead of from the full scan's best sample, and the
+result stands unless a check sample has a larger ℓ, the refinement ran to the edge of
+its window (ψ* moved further than the window) or ℓ is not finite. Every other node gets
+the cold search (full scan, then refinement) as without a start. A maximizer that moved
+to another local maximum narrower than the check's spacing can be missed there, as one
+narrower than the full scan's spacing can be by the cold search.
 """
 
 from __future__ import annotations
@@ -20,6 +30,8 @@ import numpy as np
 
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 CHUNK = 1 << 16  # node-sample pairs per evaluation of ℓ in the scan
+CHECK_STRIDE = 2  # the warm start's coarse check: samples // CHECK_STRIDE directions
+EDGE = 0.95  # a warm refinement that ends beyond this fraction of its window ran to the edge
 
 
 def sphere_samples(k: int, count: int) -> np.ndarray:
@@ -33,33 +45,66 @@ def sphere_samples(k: int, count: int) -> np.ndarray:
 
 
 def maximize_on_sphere(
-    objective: Callable[[np.ndarray], np.ndarray],
+    objective: Callable[..., np.ndarray],
     nodes: int,
     k: int,
     samples: int = 128,
     sweeps: int | None = None,
     iterations: int = 40,
+    start: np.ndarray | None = None,
 ) -> np.ndarray:
     """argmax over ψ ∈ S_k of objective, for every node at once.
 
-    objective(psi) takes psi of shape (nodes, M, k) and returns values (nodes, M).
-    Returns ψ* of shape (nodes, k).
+    objective(psi, at=None) takes psi of shape (n, M, k) and returns values (n, M), for all
+    nodes (at None, n = nodes) or the nodes of the index array `at`. start: a previous ψ*
+    (nodes, k) to refine from (the module's warm start). Returns ψ* of shape (nodes, k).
     """
     grid = sphere_samples(k, samples)
-    psi = grid[best_sample(objective, grid, nodes)]
     spacing = 2.0 * np.pi / samples if k == 2 else np.pi / samples ** (1.0 / (k - 1))
     sweeps = (1 if k == 2 else 4) if sweeps is None else sweeps
-    for sweep in range(sweeps):
-        width = 2.0 * spacing / (4.0**sweep)
-        for tangent in _tangent_basis(psi):
-            psi = _golden_on_circle(objective, psi, tangent, width, iterations)
+
+    def refine(psi: np.ndarray, at: np.ndarray | None) -> np.ndarray:
+        part = objective if at is None else (lambda p: objective(p, at))
+        for sweep in range(sweeps):
+            width = 2.0 * spacing / (4.0**sweep)
+            for tangent in _tangent_basis(psi):
+                psi = _golden_on_circle(part, psi, tangent, width, iterations)
+        return psi
+
+    if start is None or start.shape != (nodes, k):
+        return refine(grid[best_sample(objective, grid, nodes)], None)
+    # the coarse check first: the warm start stands where the check's best direction is next to it
+    check = grid[::CHECK_STRIDE] if k == 2 else sphere_samples(k, max(8, samples // CHECK_STRIDE))
+    spread = CHECK_STRIDE * spacing  # the check's spacing
+    index, top = _best(objective, check, nodes)
+    psi = np.array(start, dtype=float)
+    warm = np.flatnonzero(_angle(check[index], psi) <= spread)
+    if warm.size:
+        psi[warm] = refine(psi[warm], warm)
+        value = objective(psi[warm][:, None, :], warm)[:, 0]
+        with np.errstate(invalid="ignore"):  # below the check, out of its window (ψ* moved further), or NaN
+            lost = (value < top[warm]) | (_angle(psi[warm], start[warm]) > EDGE * 2.0 * spacing) | ~np.isfinite(value)
+        warm = warm[~lost]
+    cold = np.setdiff1d(np.arange(nodes), warm)
+    if cold.size:
+        psi[cold] = refine(grid[best_sample(lambda p: objective(p, cold), grid, cold.size)], cold)
     return psi
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The angle between unit vectors, row by row."""
+    return np.arccos(np.clip(np.einsum("nk,nk->n", a, b), -1.0, 1.0))
 
 
 def best_sample(objective: Callable[[np.ndarray], np.ndarray], grid: np.ndarray, nodes: int) -> np.ndarray:
     """Index (nodes,) of the first sample of `grid` (M, k) with the largest value at each
     node — ``argmax`` over all M samples, NaN counting as the largest — evaluated
     CHUNK node-sample pairs at a time."""
+    return _best(objective, grid, nodes)[0]
+
+
+def _best(objective, grid: np.ndarray, nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`best_sample`'s index and the value there."""
     count, k = grid.shape
     step = max(1, min(count, CHUNK // max(nodes, 1)))
     best = np.zeros(nodes, dtype=int)
@@ -72,7 +117,7 @@ def best_sample(objective: Callable[[np.ndarray], np.ndarray], grid: np.ndarray,
             better = (value > top) | (np.isnan(value) & ~np.isnan(top))
             best[better] = start + column
             top[better] = value[better]
-    return best
+    return best, top
 
 
 def _tangent_basis(psi: np.ndarray) -> list[np.ndarray]:
