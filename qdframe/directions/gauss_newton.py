@@ -367,8 +367,11 @@ class _System:
         pieces tied as `ties` say (one KKT solve), and each max-group's weights θ (N, m)."""
         lam, w, y_cols, E = self.penalty, self.f.weights, self.y_cols(), self.constraints
         A = matrix[active]
-        H = (hessian + lam * (A.T @ A)).tocsc()
-        g = gradient + lam * (A.T @ values[active])
+        if A.shape[0]:
+            H = (hessian + lam * (A.T @ A)).tocsc()
+            g = gradient + lam * (A.T @ values[active])
+        else:  # no side violated: H as it is (a copy of H is ~150 MB on paper-7.3 at N = 1e5)
+            H, g = hessian, gradient.copy()
         rows, rhs, tie_index = [], [], []
         for (piece_values, grads), tie in zip(max_groups, ties):
             ref = np.argmax(tie, axis=1)  # q₀: the first piece of S
