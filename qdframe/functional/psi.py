@@ -63,8 +63,12 @@ def maximize_on_sphere(
     spacing = 2.0 * np.pi / samples if k == 2 else np.pi / samples ** (1.0 / (k - 1))
     sweeps = (1 if k == 2 else 4) if sweeps is None else sweeps
 
+    def restricted(at: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
+        """objective at the nodes `at` (None or all of them: no indexing)."""
+        return objective if at is None or at.size == nodes else (lambda p: objective(p, at))
+
     def refine(psi: np.ndarray, at: np.ndarray | None) -> np.ndarray:
-        part = objective if at is None else (lambda p: objective(p, at))
+        part = restricted(at)
         for sweep in range(sweeps):
             width = 2.0 * spacing / (4.0**sweep)
             for tangent in _tangent_basis(psi):
@@ -81,13 +85,13 @@ def maximize_on_sphere(
     warm = np.flatnonzero(_angle(check[index], psi) <= spread)
     if warm.size:
         psi[warm] = refine(psi[warm], warm)
-        value = objective(psi[warm][:, None, :], warm)[:, 0]
+        value = restricted(warm)(psi[warm][:, None, :])[:, 0]
         with np.errstate(invalid="ignore"):  # below the check, out of its window (ψ* moved further), or NaN
             lost = (value < top[warm]) | (_angle(psi[warm], start[warm]) > EDGE * 2.0 * spacing) | ~np.isfinite(value)
         warm = warm[~lost]
     cold = np.setdiff1d(np.arange(nodes), warm)
     if cold.size:
-        psi[cold] = refine(grid[best_sample(lambda p: objective(p, cold), grid, cold.size)], cold)
+        psi[cold] = refine(grid[best_sample(restricted(cold), grid, cold.size)], cold)
     return psi
 
 
