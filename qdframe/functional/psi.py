@@ -89,7 +89,9 @@ def maximize_on_sphere(
         with np.errstate(invalid="ignore"):  # below the check, out of its window (ψ* moved further), or NaN
             lost = (value < top[warm]) | (_angle(psi[warm], start[warm]) > EDGE * 2.0 * spacing) | ~np.isfinite(value)
         warm = warm[~lost]
-    cold = np.setdiff1d(np.arange(nodes), warm)
+    stands = np.zeros(nodes, dtype=bool)
+    stands[warm] = True
+    cold = np.flatnonzero(~stands)
     if cold.size:
         psi[cold] = refine(grid[best_sample(restricted(cold), grid, cold.size)], cold)
     return psi
