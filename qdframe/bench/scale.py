@@ -8,7 +8,8 @@ child process (so that its peak memory is its own):
   estimate): **s/iter** is the median of the iterations' wall times;
 * measures the **floor** at the same start, what any Newton-type iteration must at least
   do: one fresh sparse factorization and solve of the Gauss–Newton KKT system
-  [[λJᵀJ + μW, Eᵀ], [E, 0]] (the faster of SuperLU and the LDLᵀ of qdldl) plus one
+  [[λJᵀJ + μW, Eᵀ], [E, 0]] (the fastest of SuperLU with its default panel, SuperLU with a
+  one-column panel as gauss-newton runs it, and the LDLᵀ of qdldl) plus one
   vectorized evaluation of every piece of the model at all nodes (the sets' max- and
   min-groups, the sign terms' switching functions, the cost, the surface);
   **÷ floor** = s/iter ÷ floor;
@@ -56,6 +57,7 @@ class Cell:
     model_s: float  # the floor's evaluation of the model
     peak_mb: float  # resident memory above the built functional, at its peak
     must_exist_mb: float  # ξ, J and the KKT factors
+    factorizations: float = float("nan")  # KKT factorizations per iteration (gauss-newton; NaN for the others)
     error: str = ""
 
     @property
@@ -102,11 +104,12 @@ def measure(path: str, model_name: str, nodes: int, iterations: int = ITERATIONS
     peak = _peak_mb() - base
     times = np.diff([record.time_s for record in result.history])
     per_iteration = float(np.median(times)) if times.size else float("nan")
+    factorizations = solver.factorizations / times.size if hasattr(solver, "factorizations") and times.size else float("nan")
     factor_s, factor_bytes, jacobian_bytes = _factor_floor(functional, start)
     model_s = _model_floor(functional, start)
     must_exist = (start.nbytes + jacobian_bytes + factor_bytes) / 2**20
     return Cell(path, model_name, nodes, int(times.size), result.status, per_iteration, factor_s + model_s, factor_s,
-                model_s, peak, must_exist)
+                model_s, peak, must_exist, factorizations)
 
 
 def _factor_floor(functional, xi: np.ndarray) -> tuple[float, int, int]:
@@ -126,10 +129,10 @@ def _factor_floor(functional, xi: np.ndarray) -> tuple[float, int, int]:
     rhs = np.ones(kkt.shape[0])
     jacobian_bytes = J.data.nbytes + J.indices.nbytes + J.indptr.nbytes
 
-    def superlu() -> int:
-        lu = spla.splu(kkt)
+    def superlu(panel_size: int | None = None) -> int:
+        lu = spla.splu(kkt) if panel_size is None else spla.splu(kkt, panel_size=panel_size)
         lu.solve(rhs)
-        return 12 * (lu.L.nnz + lu.U.nnz)
+        return 12 * lu.nnz  # L + U
 
     def ldl() -> int:
         import qdldl
@@ -140,7 +143,7 @@ def _factor_floor(functional, xi: np.ndarray) -> tuple[float, int, int]:
         return 12 * factor.factors()[0].nnz
 
     best, factor_bytes = float("inf"), None
-    for method in (superlu, ldl):
+    for method in (superlu, lambda: superlu(panel_size=1), ldl):  # SuperLU's default panel and the one gauss-newton uses
         try:
             seconds, used = _median_time(method)
         except Exception:  # noqa: BLE001 — a factorization this system does not admit: the other one counts
@@ -207,16 +210,20 @@ def exponents(cells: Sequence[Cell]) -> dict[tuple[str, str], float]:
 def table(cells: Sequence[Cell]) -> str:
     """A Markdown table: one row per cell, the exponent on each (path, model)'s last row."""
     k = exponents(cells)
-    lines = ["| path | model | N | iterations | status | s/iter | floor s | ÷ floor | peak MB | must exist MB | k |",
-             "|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| path | model | N | iterations | status | s/iter | KKT/iter | floor s | ÷ floor | peak MB | must exist MB | k |",
+             "|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
     for i, cell in enumerate(cells):
         last = i + 1 == len(cells) or (cells[i + 1].path, cells[i + 1].model) != (cell.path, cell.model)
         exponent = f"{k[(cell.path, cell.model)]:.2f}" if last and np.isfinite(k[(cell.path, cell.model)]) else ""
         status = cell.status + (f" ({cell.error})" if cell.error else "")
         lines.append(f"| {cell.path} | {cell.model} | {cell.nodes} | {cell.iterations} | {status} | "
-                     f"{cell.per_iteration_s:.3g} | {cell.floor_s:.3g} | {cell.ratio:.1f} | {cell.peak_mb:.1f} | "
+                     f"{cell.per_iteration_s:.3g} | {_count(cell.factorizations)} | {cell.floor_s:.3g} | {cell.ratio:.1f} | {cell.peak_mb:.1f} | "
                      f"{cell.must_exist_mb:.1f} | {exponent} |")
     return "\n".join(lines)
+
+
+def _count(value: float) -> str:
+    return "—" if not np.isfinite(value) else f"{value:.3g}"
 
 
 def to_json(cells: Sequence[Cell]) -> dict:

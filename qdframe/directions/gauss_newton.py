@@ -90,6 +90,12 @@ class GaussNewton(DirectionSolver):
     def start(self, functional: "Functional") -> None:
         self._state.clear()
 
+    @property
+    def factorizations(self) -> int:
+        """KKT factorizations since the solve began (one per guess of the active-set iteration)."""
+        kkt = self._state.get("kkt")
+        return kkt.factorizations if kkt is not None else 0
+
     def _adapt(self, xi: np.ndarray, value: float) -> None:
         state = self._state
         if "step" not in state:  # the first iteration of a solve

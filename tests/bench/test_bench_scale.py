@@ -31,6 +31,9 @@ def test_a_cell_measures_the_descent_the_floor_and_the_arrays() -> None:
     # ξ alone is 201 nodes × (x, z, u) of paper-7.3 in float64; J and the factors come on top
     assert measured.must_exist_mb > 201 * 5 * 8 / 2**20
     assert measured.per_iteration_s > 0 and measured.ratio == measured.per_iteration_s / measured.floor_s
+    # every gauss-newton iteration factors its KKT system at least once (one per active-set guess)
+    assert measured.factorizations >= 1 and measured.factorizations * measured.iterations == int(
+        measured.factorizations * measured.iterations)
 
 
 def test_cli_writes_the_table_and_json(tmp_path, capsys) -> None:
@@ -40,6 +43,7 @@ def test_cli_writes_the_table_and_json(tmp_path, capsys) -> None:
     assert code == 0
     printed = capsys.readouterr().out
     assert "| native | paper-7.1 | 201 |" in printed
+    assert "KKT/iter" in printed and "| — |" in printed  # native factors no KKT system
     report = json.loads(out.read_text())
     assert report["format"] == "qdframe-bench-scale/1"
     assert [c["nodes"] for c in report["cells"]] == [101, 201]
