@@ -378,27 +378,35 @@ class _System:
             g = gradient + lam * (A.T @ values[active])
         else:  # no side violated: H as it is (a copy of H is ~150 MB on paper-7.3 at N = 1e5)
             H, g = hessian, gradient.copy()
-        rows, rhs, tie_index = [], [], []
+        nodes, p = self.nodes, y_cols.shape[1]
+        every = np.arange(nodes)
+        rows, rhs, softness, others = [], [], [], []
         for (piece_values, grads), tie in zip(max_groups, ties):
+            # one row per node and piece other than q₀, tied or not, so that C keeps one pattern
+            # through the guesses of a step (and the KKT solver its analysis): an untied row is
+            # 0·d − ν = 0 (ν = 0), a tied one (∇a_q − ∇a_q₀)·d_k − εν = a_q₀ − a_q
             ref = np.argmax(tie, axis=1)  # q₀: the first piece of S
-            np.add.at(g, y_cols.ravel(), (w[:, None] * grads[np.arange(self.nodes), ref]).ravel())
-            node, piece = np.nonzero(tie & (np.arange(tie.shape[1]) != ref[:, None]))
-            tie_index.append((node, piece, ref))
-            rows.append(sp.csr_matrix(
-                ((grads[node, piece] - grads[node, ref[node]]).ravel(),
-                 (np.repeat(np.arange(node.size), y_cols.shape[1]), y_cols[node].ravel())),
-                shape=(node.size, self.size)))
-            rhs.append(piece_values[node, ref[node]] - piece_values[node, piece])
+            np.add.at(g, y_cols.ravel(), (w[:, None] * grads[every, ref]).ravel())
+            count = tie.shape[1] - 1
+            other = np.arange(count)[None, :] + (np.arange(count)[None, :] >= ref[:, None])  # (N, m − 1)
+            tied = tie[every[:, None], other]
+            coefficients = np.where(tied[:, :, None], grads[every[:, None], other] - grads[every, ref][:, None, :], 0.0)
+            rows.append(sp.csr_matrix((coefficients.ravel(), np.repeat(y_cols, count, axis=0).ravel(),
+                                       np.arange(0, nodes * count * p + 1, p)), shape=(nodes * count, self.size)))
+            rhs.append(np.where(tied, piece_values[every, ref][:, None] - piece_values[every[:, None], other], 0.0).ravel())
+            softness.append(np.where(tied, TIE_SOFTNESS, 1.0).ravel())
+            others.append((other, tied, ref))
         C = sp.vstack([E, *rows], format="csr") if rows else E
         with np.errstate(all="ignore"):
-            soft = np.concatenate([np.zeros(E.shape[0]), np.full(C.shape[0] - E.shape[0], TIE_SOFTNESS)])
+            soft = np.concatenate([np.zeros(E.shape[0]), *softness])
             d, nu = solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft, solver=self.kkt)
         thetas, offset = [], E.shape[0]
-        for tie, (node, piece, ref) in zip(ties, tie_index):
+        for tie, (other, tied, ref) in zip(ties, others):
             theta = np.zeros(tie.shape)
-            theta[node, piece] = nu[offset : offset + node.size] / w[node]
-            offset += node.size
-            theta[np.arange(self.nodes), ref] = 1.0 - theta.sum(axis=1)
+            size = other.size
+            theta[every[:, None], other] = np.where(tied, nu[offset : offset + size].reshape(other.shape), 0.0) / w[:, None]
+            offset += size
+            theta[every, ref] = 1.0 - theta.sum(axis=1)
             thetas.append(theta)
         return d, thetas
 

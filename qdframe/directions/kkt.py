@@ -20,9 +20,11 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   (`PIVOT_THRESHOLD`): the column order then orders rows too, and the fill is lower.
 * **Ordering once.** The fill-reducing column order (COLAMD) is computed at the first
   factorization of a :class:`KKTSolver` and reused for every later system of the same
-  shape and constraints (the active-set loop's refactors, the later iterations of one
-  solve): each reuse is a numerical factorization only. A reused order whose factors
-  grow past `REANALYSE_GROWTH` times the analysed ones is computed afresh.
+  shape and constraint pattern (the active-set loop's refactors, the later iterations of
+  one solve): each reuse is a numerical factorization only. A reused order whose factors
+  grow past `REANALYSE_GROWTH` times the analysed ones is computed afresh. (gauss-newton
+  keeps C's pattern through its guesses: a cost piece that leaves the tie keeps its row,
+  with zero coefficients.)
 * **One column per panel.** SuperLU's panels (`PANEL_SIZE` columns updated together, a
   dense work array of panel × rows) pay on wide dense fronts; these systems' columns are
   short, and on the paper's examples at N = 1e5 a panel of one column factors 1.6–2.3×

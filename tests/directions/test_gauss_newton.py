@@ -142,6 +142,8 @@ def test_the_active_set_step_minimizes_the_step_qp(model_index, seed, exact, mon
     d, predicted, _ = system.solve(mu)
     settled = system.settled
     assert settled is not None, "the active-set iteration fell back to the QP"
+    # the guesses change the tied pieces, not the pattern of the constraint rows: one analysis
+    assert system.kkt.analyses == 1
     J, lam, damping = system.jacobian, system.penalty, mu * system._damping()
     hessian = (lam * (J.T @ J) + gn.sp.diags(damping)).tocsc()
     d_qp, predicted_qp, _ = system._solve_cost_qp(hessian, lam * (J.T @ system.residual))
