@@ -42,12 +42,17 @@ NOT_RUN = {
     # machine with two dask workers; the quick suite runs the same code (and runs here and in
     # tests/bench/test_bench_run.py)
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
-    # every path and paper model at N = 1001, 10001, 100001: 4 minutes on the idle 2-core machine (20:25:56 to 20:29:52, 2026-11-23);
+    # every path and paper model at N = 1001, 10001, 100001: 2 min 55 s on the idle 2-core machine (2026-11-24);
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
-    "qdframe bench scale": "a 4-minute measurement",
-    # paper-7.3 at N = 100001 with the default continuation: solved in 167 iterations, 889 s on
-    # the 2-core machine (2026-11-23); the same solve at N = 101 runs in tests/test_masses_and_signs.py
-    "qdframe solve paper-7.3 --nodes 100001": "a 15-minute solve",
+    "qdframe bench scale": "a 3-minute measurement",
+    # paper-7.3 at N = 100001 with the default continuation: solved in 171 iterations, 470 s on
+    # the 2-core machine with a test run on the other core (2026-11-24); the same solve at
+    # N = 101 runs in tests/test_masses_and_signs.py
+    "qdframe solve paper-7.3 --nodes 100001": "an 8-minute solve",
+    # sliding-mode-terminal on three grids and at accuracy 1e-3 and 1e-6: 5 min 1 s on the idle
+    # 2-core machine (2026-11-24), 469 s in a loaded CI run, most of it the 1e-6 solve; the
+    # README's `--accuracy 1e-3` variant runs here, the same code on every line but that solve
+    "python examples/work_precision.py": "a 5-minute measurement",
 }
 """Commands parsed but not run, and why."""
 
