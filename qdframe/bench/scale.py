@@ -130,7 +130,7 @@ def _factor_floor(functional, xi: np.ndarray) -> tuple[float, int, int]:
     jacobian_bytes = J.data.nbytes + J.indices.nbytes + J.indptr.nbytes
 
     def superlu(panel_size: int | None = None) -> int:
-        lu = spla.splu(kkt) if panel_size is None else spla.splu(kkt, panel_size=panel_size)
+        lu = spla.splu(kkt, panel_size=panel_size)  # None: SuperLU's default
         lu.solve(rhs)
         return 12 * lu.nnz  # L + U
 
