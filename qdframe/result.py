@@ -27,7 +27,7 @@ class IterationRecord:
     direction_norm: float  # L² norm of the direction G that led here
     deviation: float  # max_k ‖v̄_k + w̄_k‖ of that direction
     boundary_error: float  # max_j |x_j(T) − xT_j| (and periodic gaps) after the step
-    time_s: float  # seconds since the solve started
+    time_s: float  # seconds since the solve started, when this iterate's terms were known
     nodes: int  # the grid of this iterate (grids change under continuation)
 
 

@@ -220,6 +220,34 @@ def test_the_descent_runs_blas_on_one_thread():
     assert seen and set(seen) == {1}
 
 
+def test_the_starts_evaluation_is_timed_in_its_own_record(monkeypatch):
+    # record k's time_s is when iterate k's terms were known, so time_s[k] − time_s[k − 1] is
+    # iteration k alone (`qdframe bench scale` takes these differences): a slow start's
+    # evaluation shows in record 0, not in iteration 1
+    import time
+
+    from qdframe.descent import DescentOptions, descend, make_line_search
+
+    model = qdframe.load_model("paper-7.1")
+    functional = Functional(model, Grid(model.T, 11, model.default_scheme))
+    start = functional.initial_point()
+    terms, calls = functional.terms, []
+
+    def slow_at_the_start(xi):
+        if not calls:  # the descent's first evaluation: the start's
+            time.sleep(0.5)
+        calls.append(1)
+        return terms(xi)
+
+    monkeypatch.setattr(functional, "terms", slow_at_the_start)
+    result = descend(functional, make_direction("gauss-newton"), make_line_search("armijo"),
+                     DescentOptions(max_iter=3), None, start)
+    times = [record.time_s for record in result.history]
+    assert len(times) >= 2 and times[0] >= 0.5
+    assert all(later >= earlier for earlier, later in zip(times, times[1:]))
+    assert times[1] - times[0] < 0.5
+
+
 class _ShortSteps(qdframe.directions.gauss_newton.GaussNewton):
     """gauss-newton's step cut to a fraction: the residuals shrink by that fraction per iteration."""
 

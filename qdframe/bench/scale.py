@@ -5,7 +5,9 @@ child process (so that its peak memory is its own):
 
 * builds the model's functional on N nodes with the model's scheme, from the model's own
   start, and runs `iterations` iterations of the descent (no continuation, no error
-  estimate): **s/iter** is the median of the iterations' wall times;
+  estimate): **s/iter** is the median of the iterations' wall times, an iteration being
+  the direction, the line search and the new iterate's terms (the differences of the
+  history's `time_s`; the start's evaluation, once per solve, is record 0's own);
 * measures the **floor** at the same start, what any Newton-type iteration must at least
   do: one fresh sparse factorization and solve of the Gauss–Newton KKT system
   [[λJᵀJ + μW, Eᵀ], [E, 0]] (the fastest of SuperLU with its default panel, SuperLU with a
