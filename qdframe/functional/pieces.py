@@ -228,18 +228,24 @@ class Pieces:
             psi = memo[0][1]
         else:
 
+            rows: dict = {}  # (node subset, samples per node) -> the subset, z_b, each max-group's f, y per sample
+
             def ell(psi: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:  # psi (n, M, k) -> (n, M)
                 count = psi.shape[1]
-                y_at, zb_at = (y, zb) if at is None else (y[at], zb[at])
-                value = np.einsum("nk,nmk->nm", zb_at, psi)
-                for f, _ in maxes:
-                    value -= _reduce_last(np.maximum, np.einsum("nqk,nmk->nmq", f if at is None else f[at], psi))
-                if block.min_groups:
+                key = (None if at is None else id(at), count)  # `at` stays alive in `rows`: its id is not reused
+                if key not in rows:  # gathered once per subset and chunk size, not at every call
+                    y_at, zb_at = (y, zb) if at is None else (y[at], zb[at])
                     y_rep = y_at if count == 1 else np.repeat(y_at, count, axis=0)
-                    flat = psi.reshape(y_at.shape[0] * count, k)
+                    rows[key] = at, zb_at, [f if at is None else f[at] for f, _ in maxes], y_rep
+                _, zb_at, fs, y_rep = rows[key]
+                value = np.einsum("nk,nmk->nm", zb_at, psi)
+                for f in fs:
+                    value -= _reduce_last(np.maximum, np.einsum("nqk,nmk->nmq", f, psi))
+                if block.min_groups:
+                    flat = psi.reshape(zb_at.shape[0] * count, k)
                     for group in block.min_groups:
                         g, _ = group.pieces(y_rep, flat)
-                        value -= _reduce_last(np.minimum, g.reshape(y_at.shape[0], count, -1))
+                        value -= _reduce_last(np.minimum, g.reshape(zb_at.shape[0], count, -1))
                 return value
 
             # warm: from the ψ* found last for this block (the previous iterate, or trial point)

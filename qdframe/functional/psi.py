@@ -9,17 +9,23 @@ in the angle.
 The scan evaluates values only, a chunk of samples at a time (at most
 ``CHUNK`` node-sample pairs per call of ℓ), so its memory is bounded by a few arrays
 of the nodes' size instead of growing with nodes × samples; it keeps the first best
-sample, as one ``argmax`` over all samples would.
+sample, as one ``argmax`` over all samples would. Each golden search also returns ℓ at
+its point: the warm start's test reads it, and the next search starts from there and
+compares with that value at θ = 0 (the first with the scan's best value) instead of
+evaluating ℓ again where ψ cos 0 + t sin 0 is ψ bit for bit (everywhere but at a zero of ψ
+whose sign the rotation flips).
 
 Warm start: given the previous iterate's ψ* (`start`), a coarse check scans every
-CHECK_STRIDE-th sample of the grid (for k = 2; k/CHECK_STRIDE random ones for k > 2).
-Where its best direction lies within one check spacing of the start, the golden
-refinement runs from the start instead of from the full scan's best sample, and the
-result stands unless a check sample has a larger ℓ, the refinement ran to the edge of
+CHECK_STRIDE-th sample of the grid (for k = 2; for k > 2 its first samples/CHECK_STRIDE,
+at least 8). Where its best direction lies within one check spacing of the start, the
+golden refinement runs from the start instead of from the full scan's best sample, and
+the result stands unless a check sample has a larger ℓ, the refinement ran to the edge of
 its window (ψ* moved further than the window) or ℓ is not finite. Every other node gets
-the cold search (full scan, then refinement) as without a start. A maximizer that moved
-to another local maximum narrower than the check's spacing can be missed there, as one
-narrower than the full scan's spacing can be by the cold search.
+the cold search as without a start, whose scan evaluates only the samples the check did
+not and merges their best with the check's: the first best of all samples, as the full
+scan finds it. A maximizer that moved to another local maximum narrower than the check's
+spacing can be missed there, as one narrower than the full scan's spacing can be by the
+cold search.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import numpy as np
 
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 CHUNK = 1 << 16  # node-sample pairs per evaluation of ℓ in the scan
-CHECK_STRIDE = 2  # the warm start's coarse check: samples // CHECK_STRIDE directions
+CHECK_STRIDE = 2  # the warm start's coarse check: every CHECK_STRIDE-th of the scan's directions (k = 2)
 EDGE = 0.95  # a warm refinement that ends beyond this fraction of its window ran to the edge
 
 
@@ -67,33 +73,38 @@ def maximize_on_sphere(
         """objective at the nodes `at` (None or all of them: no indexing)."""
         return objective if at is None or at.size == nodes else (lambda p: objective(p, at))
 
-    def refine(psi: np.ndarray, at: np.ndarray | None) -> np.ndarray:
+    def refine(psi: np.ndarray, at: np.ndarray | None, value: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The golden sweeps from ψ (ℓ there: `value`, if known): the refined ψ and ℓ there."""
         part = restricted(at)
         for sweep in range(sweeps):
             width = 2.0 * spacing / (4.0**sweep)
             for tangent in _tangent_basis(psi):
-                psi = _golden_on_circle(part, psi, tangent, width, iterations)
-        return psi
+                psi, value = _golden_on_circle(part, psi, tangent, width, iterations, value)
+        return psi, value
 
     if start is None or start.shape != (nodes, k):
-        return refine(grid[best_sample(objective, grid, nodes)], None)
+        index, top = _best(objective, grid, nodes)
+        return refine(grid[index], None, top)[0]
     # the coarse check first: the warm start stands where the check's best direction is next to it
-    check = grid[::CHECK_STRIDE] if k == 2 else sphere_samples(k, max(8, samples // CHECK_STRIDE))
+    checked = np.arange(0, samples, CHECK_STRIDE) if k == 2 else np.arange(min(samples, max(8, samples // CHECK_STRIDE)))
     spread = CHECK_STRIDE * spacing  # the check's spacing
-    index, top = _best(objective, check, nodes)
+    index, top = _best(objective, grid[checked], nodes)
+    index = checked[index]
     psi = np.array(start, dtype=float)
-    warm = np.flatnonzero(_angle(check[index], psi) <= spread)
+    warm = np.flatnonzero(_angle(grid[index], psi) <= spread)
     if warm.size:
-        psi[warm] = refine(psi[warm], warm)
-        value = restricted(warm)(psi[warm][:, None, :])[:, 0]
+        psi[warm], value = refine(psi[warm], warm)
         with np.errstate(invalid="ignore"):  # below the check, out of its window (ψ* moved further), or NaN
             lost = (value < top[warm]) | (_angle(psi[warm], start[warm]) > EDGE * 2.0 * spacing) | ~np.isfinite(value)
         warm = warm[~lost]
     stands = np.zeros(nodes, dtype=bool)
     stands[warm] = True
     cold = np.flatnonzero(~stands)
-    if cold.size:
-        psi[cold] = refine(grid[best_sample(restricted(cold), grid, cold.size)], cold)
+    if cold.size:  # the full scan there: the samples the check did not evaluate, merged with the check's best
+        rest = np.setdiff1d(np.arange(samples), checked)
+        more, more_top = _best(restricted(cold), grid[rest], cold.size)
+        index, top = _first_best(index[cold], top[cold], rest[more], more_top)
+        psi[cold] = refine(grid[index], cold, top)[0]
     return psi
 
 
@@ -126,6 +137,17 @@ def _best(objective, grid: np.ndarray, nodes: int) -> tuple[np.ndarray, np.ndarr
     return best, top
 
 
+def _first_best(index: np.ndarray, top: np.ndarray, other: np.ndarray, other_top: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Two scans' best samples (grid index, value) merged into the best of both: the larger
+    value, NaN counting as the largest, and of equal ones the lower index, as one scan of
+    all their samples in index order (:func:`_best`) keeps."""
+    nan, other_nan = np.isnan(top), np.isnan(other_top)
+    tie = (other_top == top) | (nan & other_nan)
+    other_wins = (other_top > top) | (other_nan & ~nan) | (tie & (other < index))
+    return np.where(other_wins, other, index), np.where(other_wins, other_top, top)
+
+
 def _tangent_basis(psi: np.ndarray) -> list[np.ndarray]:
     """k − 1 orthonormal tangent vectors at each ψ: list of (nodes, k)."""
     nodes, k = psi.shape
@@ -146,30 +168,44 @@ def _tangent_basis(psi: np.ndarray) -> list[np.ndarray]:
     return basis
 
 
-def _golden_on_circle(objective, psi, tangent, width, iterations) -> np.ndarray:
-    """Maximize along ψ cos θ + tangent sin θ, θ ∈ [−width, width], per node."""
+def _golden_on_circle(objective, psi, tangent, width, iterations, known=None) -> tuple[np.ndarray, np.ndarray]:
+    """Maximize along ψ cos θ + tangent sin θ, θ ∈ [−width, width], per node: the point and
+    ℓ there. known: ℓ at ψ (θ = 0), if evaluated already."""
 
-    def point(theta: np.ndarray) -> np.ndarray:
-        return psi * np.cos(theta)[:, None] + tangent * np.sin(theta)[:, None]
+    def value(point: np.ndarray) -> np.ndarray:
+        return objective(point[:, None, :])[:, 0]
 
-    def value(theta: np.ndarray) -> np.ndarray:
-        return objective(point(theta)[:, None, :])[:, 0]
+    def along(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        point = _rotate(psi, tangent, np.cos(theta), np.sin(theta))
+        return point, value(point)
 
     lo = np.full(psi.shape[0], -width)
     hi = np.full(psi.shape[0], width)
     a = hi - _GOLDEN * (hi - lo)
     b = lo + _GOLDEN * (hi - lo)
-    fa, fb = value(a), value(b)
+    fa, fb = along(a)[1], along(b)[1]
     for _ in range(iterations):
-        left = fa >= fb  # maximum in [lo, b]
+        left = fa >= fb  # maximum in [lo, b]: a new point left of a, else right of b
         hi = np.where(left, b, hi)
         lo = np.where(left, lo, a)
-        new_a = np.where(left, hi - _GOLDEN * (hi - lo), b)
-        new_b = np.where(left, a, lo + _GOLDEN * (hi - lo))
-        moved = np.where(left, new_a, new_b)
-        f_moved = value(moved)
+        step = _GOLDEN * (hi - lo)
+        moved = np.where(left, hi - step, lo + step)
+        f_moved = along(moved)[1]
+        a, b = np.where(left, moved, b), np.where(left, a, moved)
         fa, fb = np.where(left, f_moved, fb), np.where(left, fa, f_moved)
-        a, b = new_a, new_b
-    theta = 0.5 * (lo + hi)
-    best = np.where(value(theta) >= value(np.zeros_like(theta)), theta, 0.0)
-    return point(best)
+    middle, f_middle = along(0.5 * (lo + hi))
+    start = _rotate(psi, tangent, 1.0, 0.0)  # θ = 0: ψ itself, unless a zero of ψ changed its sign
+    if known is None or not np.array_equal(start.view(np.int64), psi.view(np.int64)):
+        known = value(start)
+    better = f_middle >= known
+    return np.where(better[:, None], middle, start), np.where(better, f_middle, known)
+
+
+def _rotate(psi: np.ndarray, tangent: np.ndarray, cos, sin) -> np.ndarray:
+    """ψ cos θ + tangent sin θ (nodes, k), a coordinate at a time (broadcasting (nodes, 1)
+    against (nodes, k) costs several times more at a large k·nodes)."""
+    point = np.empty_like(psi)
+    for j in range(psi.shape[1]):
+        np.multiply(psi[:, j], cos, out=point[:, j])
+        point[:, j] += tangent[:, j] * sin
+    return point

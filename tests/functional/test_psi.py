@@ -1,5 +1,8 @@
 """ψ* on S_k (qdframe.functional.psi): the chunked, memoized search gives the same ψ*, the same
-δ-active pieces and the same solves as the original batched scan, kept here as the reference."""
+δ-active pieces and the same solves as the original batched scan, kept here as the reference;
+and the same ψ*, bit for bit, as the chunked search before the scan reused the warm check's
+samples and the golden searches their known values (`previous_maximize`), with fewer
+evaluations of ℓ."""
 
 from __future__ import annotations
 
@@ -12,7 +15,8 @@ from qdframe.functional import Functional
 from qdframe.functional.assembly import _delta_active
 from qdframe.grid import Grid
 from qdframe.models.paper_sets import Paper72Sets
-from qdframe.functional.psi import _tangent_basis, _golden_on_circle, sphere_samples
+from qdframe.functional.psi import (CHECK_STRIDE, CHUNK, EDGE, _angle, _tangent_basis, maximize_on_sphere,
+                                    sphere_samples)
 from qdframe.sets import Ball, SetModel, intersection
 
 S2_MODELS = ["paper-7.2", "paper-7.2-sets", "intersecting-balls"]  # intersecting-balls: qdframe-mechanics
@@ -29,8 +33,77 @@ def reference_maximize(objective, nodes, k, samples=128, sweeps=None, iterations
     for sweep in range(sweeps):
         width = 2.0 * spacing / (4.0**sweep)
         for tangent in _tangent_basis(psi):
-            psi = _golden_on_circle(objective, psi, tangent, width, iterations)
+            psi = _previous_golden(objective, psi, tangent, width, iterations)
     return psi
+
+
+def previous_maximize(objective, nodes, k, samples=128, sweeps=None, iterations=40, start=None):
+    """The chunked search with warm starts as it was before the cold scan reused the check's
+    samples and the golden searches the values known at their start: the oracle, bit for bit."""
+    grid = sphere_samples(k, samples)
+    spacing = 2.0 * np.pi / samples if k == 2 else np.pi / samples ** (1.0 / (k - 1))
+    sweeps = (1 if k == 2 else 4) if sweeps is None else sweeps
+
+    def restricted(at):
+        return objective if at is None or at.size == nodes else (lambda p: objective(p, at))
+
+    def refine(psi, at):
+        for sweep in range(sweeps):
+            for tangent in _tangent_basis(psi):
+                psi = _previous_golden(restricted(at), psi, tangent, 2.0 * spacing / (4.0**sweep), iterations)
+        return psi
+
+    if start is None or start.shape != (nodes, k):
+        return refine(grid[_previous_best(objective, grid, nodes)[0]], None)
+    check = grid[::CHECK_STRIDE] if k == 2 else sphere_samples(k, max(8, samples // CHECK_STRIDE))
+    index, top = _previous_best(objective, check, nodes)
+    psi = np.array(start, dtype=float)
+    warm = np.flatnonzero(_angle(check[index], psi) <= CHECK_STRIDE * spacing)
+    if warm.size:
+        psi[warm] = refine(psi[warm], warm)
+        value = restricted(warm)(psi[warm][:, None, :])[:, 0]
+        with np.errstate(invalid="ignore"):
+            lost = (value < top[warm]) | (_angle(psi[warm], start[warm]) > EDGE * 2.0 * spacing) | ~np.isfinite(value)
+        warm = warm[~lost]
+    cold = np.setdiff1d(np.arange(nodes), warm)
+    if cold.size:
+        psi[cold] = refine(grid[_previous_best(restricted(cold), grid, cold.size)[0]], cold)
+    return psi
+
+
+def _previous_best(objective, grid, nodes):
+    count, k = grid.shape
+    step = max(1, min(count, CHUNK // max(nodes, 1)))
+    best, top = np.zeros(nodes, dtype=int), np.full(nodes, -np.inf)
+    for start in range(0, count, step):
+        values = objective(np.broadcast_to(grid[start : start + step], (nodes, min(step, count - start), k)))
+        for column in range(values.shape[1]):
+            value = values[:, column]
+            better = (value > top) | (np.isnan(value) & ~np.isnan(top))
+            best[better], top[better] = start + column, value[better]
+    return best, top
+
+
+def _previous_golden(objective, psi, tangent, width, iterations):
+    def point(theta):
+        return psi * np.cos(theta)[:, None] + tangent * np.sin(theta)[:, None]
+
+    def value(theta):
+        return objective(point(theta)[:, None, :])[:, 0]
+
+    golden = (np.sqrt(5.0) - 1.0) / 2.0
+    lo, hi = np.full(psi.shape[0], -width), np.full(psi.shape[0], width)
+    a, b = hi - golden * (hi - lo), lo + golden * (hi - lo)
+    fa, fb = value(a), value(b)
+    for _ in range(iterations):
+        left = fa >= fb
+        hi, lo = np.where(left, b, hi), np.where(left, lo, a)
+        new_a, new_b = np.where(left, hi - golden * (hi - lo), b), np.where(left, a, lo + golden * (hi - lo))
+        f_moved = value(np.where(left, new_a, new_b))
+        fa, fb = np.where(left, f_moved, fb), np.where(left, fa, f_moved)
+        a, b = new_a, new_b
+    theta = 0.5 * (lo + hi)
+    return point(np.where(value(theta) >= value(np.zeros_like(theta)), theta, 0.0))
 
 
 class Balls3(SetModel):
@@ -160,3 +233,80 @@ def test_the_warm_start_scans_half_and_finds_the_cold_maximum(name):
     assert pairs[0] < 0.75 * pairs[1]
     np.testing.assert_allclose(new.ell, ref.ell, rtol=0, atol=1e-14)
     np.testing.assert_allclose(new.psi, ref.psi, rtol=0, atol=1e-7)
+
+
+def _counted(objective, pairs):
+    """objective, adding the samples it evaluates at each node to pairs (nodes,)."""
+    def ell(psi, at=None):
+        np.add.at(pairs, slice(None) if at is None else at, psi.shape[1])
+        return objective(psi, at)
+    return ell
+
+
+def _ell_at(functional, xi):
+    """The objective ℓ of the (first) S_k block's search at ξ, as _state_sphere builds it."""
+    found = []
+    original = functional_module.maximize_on_sphere
+    functional_module.maximize_on_sphere = lambda objective, *a, **k: found.append(objective) or original(objective, *a, **k)
+    try:
+        _sphere_states(functional, xi)
+    finally:
+        functional_module.maximize_on_sphere = original
+    return found[0]
+
+
+def _same_bits(a, b):
+    return a.shape == b.shape and np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+@pytest.mark.parametrize("name", ["paper-7.2", "intersecting-balls", "test-balls-3"])
+def test_the_search_matches_the_previous_one_bit_for_bit_with_fewer_evaluations(name):
+    """Cold, and warm from a ψ* that stands at some nodes and not at the others (z moved far
+    at every third node): the same ψ* bit for bit as `previous_maximize`, with fewer node-sample
+    pairs: a cold search saves ℓ at θ = 0 per node; a warm one also the check's samples at the
+    nodes where the start does not stand and ℓ at the refined point where it does."""
+    model = _model(name)
+    nodes = 301
+    functional = Functional(model, Grid(model.T, nodes))
+    xi = _iterates(functional, 2)[1]
+    n = functional.n
+    moved = xi.copy()
+    moved[::3, n : 2 * n] += 3.0 * np.random.default_rng(5).standard_normal((moved[::3].shape[0], n))
+    k = next(block.size for block in functional.blocks if block.size > 1)
+    start = maximize_on_sphere(_ell_at(functional, xi), nodes, k)
+    objective = _ell_at(Functional(model, Grid(model.T, nodes)), moved)
+    for begin in (None, start):
+        new_pairs, old_pairs = np.zeros(nodes, dtype=int), np.zeros(nodes, dtype=int)
+        new = maximize_on_sphere(_counted(objective, new_pairs), nodes, k, start=begin)
+        old = previous_maximize(_counted(objective, old_pairs), nodes, k, start=begin)
+        assert _same_bits(new, old)
+        assert new_pairs.sum() < old_pairs.sum()
+    scanned = old_pairs > old_pairs.min()  # the nodes where the start did not stand: the check, then the full scan
+    assert 0 < scanned[::3].sum() and 0 < scanned.sum() < nodes // 2
+    assert np.all(old_pairs[scanned] - new_pairs[scanned] > 128 // CHECK_STRIDE)  # the check's samples, and more
+    assert np.all(new_pairs[~scanned] < old_pairs[~scanned])
+
+
+def test_the_merged_scan_keeps_the_first_best_sample_with_ties_nan_and_inf():
+    """An ℓ of plateaus (values rounded: ties between samples), NaN at some nodes on arcs of
+    one to several samples (first in the check's samples or in the others) and −inf at all
+    samples of other nodes, from a start that fails at every node: the scan of the samples the
+    check did not evaluate, merged with the check's best, picks the sample of the full scan,
+    and the golden searches on plateaus the same points."""
+    nodes, rng = 60, np.random.default_rng(11)
+    w = rng.standard_normal((nodes, 2))
+    nan_above = np.where(rng.random(nodes) < 0.6, rng.uniform(0.95, 1.0, nodes), np.inf)  # NaN where ψ2 > this
+    inf_nodes = rng.random(nodes) < 0.1
+
+    def objective(psi, at=None):
+        rows = slice(None) if at is None else at
+        value = np.round(np.einsum("nk,nmk->nm", w[rows], psi), 1)
+        value[psi[..., 1] > nan_above[rows][:, None]] = np.nan
+        value[inf_nodes[rows]] = -np.inf
+        return value
+
+    for samples in (128, 37):
+        far = -maximize_on_sphere(objective, nodes, 2, samples=samples)  # the antipode: the check fails
+        for begin in (None, far):
+            new = maximize_on_sphere(objective, nodes, 2, samples=samples, start=begin)
+            assert _same_bits(new, previous_maximize(objective, nodes, 2, samples=samples, start=begin))
