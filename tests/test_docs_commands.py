@@ -42,7 +42,7 @@ NOT_RUN = {
     # machine with two dask workers; the quick suite runs the same code (and runs here and in
     # tests/bench/test_bench_run.py)
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
-    # every path and paper model at N = 1001, 10001, 100001: 2 min 55 s on the idle 2-core machine (2026-11-24);
+    # every path and paper model at N = 1001, 10001, 100001: 3 min 57 s on the idle 2-core machine (2026-11-25);
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
     "qdframe bench scale": "a 3-minute measurement",
     # paper-7.3 at N = 100001 with the default continuation: solved in 171 iterations, 470 s on
