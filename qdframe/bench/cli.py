@@ -55,6 +55,8 @@ def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> N
                              help="models (default paper-7.1,paper-7.2,paper-7.3)")
     bench_scale.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 1001,10001,100001)")
     bench_scale.add_argument("--iterations", type=integer(1), default=3, help="iterations timed per cell (default 3)")
+    bench_scale.add_argument("--repeat", type=integer(1), default=1,
+                             help="processes measuring each cell: the least s/iter and floor are kept (default 1)")
     bench_scale.add_argument("--json", metavar="FILE", help="write the cells and exponents as JSON")
     _add_run_parser(benches)
 
@@ -156,7 +158,7 @@ def _scale(args: argparse.Namespace) -> int:
     if args.json:
         writable("--json", args.json)
     cells = scale.run(args.paths or scale.PATHS, args.models or scale.MODELS, args.nodes or scale.NODES,
-                      args.iterations, progress=_say())
+                      args.iterations, progress=_say(), repeat=args.repeat)
     if args.json:
         Path(args.json).write_text(json.dumps(scale.to_json(cells), indent=1) + "\n")
     print(scale.table(cells))

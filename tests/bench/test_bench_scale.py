@@ -48,3 +48,21 @@ def test_cli_writes_the_table_and_json(tmp_path, capsys) -> None:
     assert report["format"] == "qdframe-bench-scale/1"
     assert [c["nodes"] for c in report["cells"]] == [101, 201]
     assert np.isfinite(report["exponents"][0]["k"])
+
+
+def test_repeated_measurements_keep_the_least_time_and_floor_and_the_largest_peak() -> None:
+    a = scale.Cell("p", "m", 101, 3, "max_iter", 2.0, 0.5, 0.4, 0.1, 30.0, 1.0, 4.0)
+    b = scale.Cell("p", "m", 101, 3, "max_iter", 1.5, 0.6, 0.5, 0.1, 20.0, 1.0, 4.0)
+    failed = scale.Cell("p", "m", 101, 0, "failed", *([float("nan")] * 6), error="MemoryError: ")
+    kept = scale.best([a, failed, b])
+    assert (kept.per_iteration_s, kept.floor_s, kept.factor_s, kept.model_s) == (1.5, 0.5, 0.4, 0.1)
+    assert kept.peak_mb == 30.0 and kept.repeats == 2 and kept.ratio == 3.0
+    assert scale.best([failed]).error  # nothing measured: the failure is the row
+
+
+def test_cli_repeats_each_cell(tmp_path) -> None:
+    out = tmp_path / "scale.json"
+    assert main(["bench", "scale", "--paths", "native", "--models", "paper-7.1", "--nodes", "101",
+                 "--iterations", "1", "--repeat", "2", "--json", str(out)]) == 0
+    (measured,) = json.loads(out.read_text())["cells"]
+    assert measured["repeats"] == 2 and measured["per_iteration_s"] > 0
