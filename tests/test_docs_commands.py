@@ -44,7 +44,9 @@ NOT_RUN = {
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
     # every path and paper model at N = 1001, 10001, 100001: 3 min 57 s on the idle 2-core machine (2026-11-25);
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
-    "qdframe bench scale": "a 3-minute measurement",
+    "qdframe bench scale": "a 4-minute measurement",
+    # the same at N = 100001 alone, each cell in three processes: 9 min 50 s (2026-11-25)
+    "qdframe bench scale --nodes 100001 --repeat 3": "a 10-minute measurement",
     # paper-7.3 at N = 100001 with the default continuation: solved in 171 iterations, 470 s on
     # the 2-core machine with a test run on the other core (2026-11-24); the same solve at
     # N = 101 runs in tests/test_masses_and_signs.py
