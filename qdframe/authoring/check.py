@@ -7,7 +7,8 @@ misleads the direction and the run stalls or ends `stationary` far from I = 0. T
 check evaluates every piece at random states and controls (and random ψ) around the
 model's boundary data and initial guess, compares each gradient with central finite
 differences, and reports the worst error per piece; a piece that returns NaN/inf, an
-array of the wrong shape, or a negative sign amplitude fails too.
+array of the wrong shape, or a negative sign amplitude fails too. A min-group's optional
+values-only function must give the values of its pieces (to the same tolerance).
 
 The error of an entry is |∂_fd − ∂| / max(1, |∂|). Where it exceeds the tolerance the
 difference is taken again with a step 100 times smaller (a kink of |·| inside the first
@@ -38,7 +39,7 @@ class PieceCheck:
     """The verdict on one group of pieces."""
 
     label: str
-    status: str  # "ok" | "wrong gradient" | "non-finite" | "bad shape" | "negative amplitude" | "error"
+    status: str  # "ok" | "wrong gradient" | "values differ" | "non-finite" | "bad shape" | "negative amplitude" | "error"
     worst_error: float  # worst gradient error (0 if not compared)
     detail: str = ""  # where the worst error is, or what went wrong
 
@@ -126,6 +127,8 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
                 lambda yy, ps, g=group: g.pieces(yy, ps),
                 value_shape=(None,), psi=psi,
             ))
+            if group.values is not None:
+                report.pieces.append(checker.values_agree(f"{label} min-group {group.name!r} values", group, psi))
         for term in block.signs:
             report.pieces.append(checker.run(
                 f"{label} sign term {term.name!r} switch",
@@ -215,6 +218,28 @@ class _Checker:
         if worst > self.tol:
             return PieceCheck(label, "wrong gradient", worst, detail)
         return PieceCheck(label, "ok", worst, detail)
+
+    def values_agree(self, label: str, group, psi: np.ndarray) -> PieceCheck:
+        """A min-group's optional `values(y, ψ)` against the values of its `pieces(y, ψ)`:
+        the error of an entry is |values − pieces| / max(1, |pieces|)."""
+        try:
+            expected = np.asarray(group.pieces(self.y, psi)[0], dtype=float)
+            given = np.asarray(group.values(self.y, psi), dtype=float)
+        except Exception as exc:  # a model's own bug: report it, do not crash the check
+            return PieceCheck(label, "error", float("nan"), f"{type(exc).__name__}: {exc}")
+        if given.shape != expected.shape:
+            return PieceCheck(label, "bad shape", float("nan"),
+                              f"values have shape {given.shape}, pieces' values {expected.shape}")
+        error = np.abs(given - expected) / np.maximum(1.0, np.abs(expected))
+        error = np.where(np.isfinite(error) | (np.isnan(given) & np.isnan(expected)), error, np.inf)
+        error = np.nan_to_num(error, nan=0.0)
+        worst = float(np.max(error, initial=0.0))
+        if worst > self.tol:
+            sample, piece = np.unravel_index(int(np.argmax(error)), error.shape)
+            return PieceCheck(label, "values differ", worst,
+                              f"piece {piece + 1} is {given[sample, piece]:.6g}, pieces() gives "
+                              f"{expected[sample, piece]:.6g}, at {self._point(int(sample))}")
+        return PieceCheck(label, "ok", worst)
 
     def amplitude(self, label: str, groups) -> PieceCheck:
         """A sign term's amplitude Σ_i max_q a_iq(y): each group's gradient, and a ≥ 0."""

@@ -85,12 +85,14 @@ class _TwoBalls(InclusionModel):
     default_x0 = (0.0, 0.0)
 
     def blocks(self) -> tuple[SetBlock, ...]:
-        def pieces(y: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        def values(y: np.ndarray, psi: np.ndarray) -> np.ndarray:
             norm = np.linalg.norm(psi, axis=1)
-            values = np.stack([-psi[:, 0] + norm, psi[:, 0] + norm], axis=1)
-            return values, np.zeros((y.shape[0], 2, 2))
+            return np.stack([-psi[:, 0] + norm, psi[:, 0] + norm], axis=1)
 
-        return (SetBlock((0, 1), min_groups=(MinGroup(pieces, "two unit balls"),)),)
+        def pieces(y: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return values(y, psi), np.zeros((y.shape[0], 2, 2))
+
+        return (SetBlock((0, 1), min_groups=(MinGroup(pieces, "two unit balls", values=values),)),)
 
 
 def non_unique_psi() -> HardCase:

@@ -244,7 +244,7 @@ class Pieces:
                 if block.min_groups:
                     flat = psi.reshape(zb_at.shape[0] * count, k)
                     for group in block.min_groups:
-                        g, _ = group.pieces(y_rep, flat)
+                        g = group.piece_values(y_rep, flat)
                         value -= _reduce_last(np.minimum, g.reshape(zb_at.shape[0], count, -1))
                 return value
 

@@ -90,7 +90,8 @@ class Paper72(InclusionModel):
     default_end_values = (0.75, 0.5)
 
     def blocks(self) -> tuple[SetBlock, ...]:
-        return (SetBlock((0, 1), min_groups=(MinGroup(_disc_and_ellipse, "B2 ∩ E2(x)"),), name="F"),)
+        group = MinGroup(_disc_and_ellipse, "B2 ∩ E2(x)", values=_disc_and_ellipse_values)
+        return (SetBlock((0, 1), min_groups=(group,), name="F"),)
 
     def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.stack([t, t], axis=1), np.ones((t.size, 2))
@@ -98,10 +99,22 @@ class Paper72(InclusionModel):
 
 
 def _disc_and_ellipse(x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    x1, p1, p2 = x[:, 0], psi[:, 0], psi[:, 1]
-    root = np.sqrt((x1**2 + 3.0) * p1**2 + p2**2)
-    disc = np.sqrt(p1**2 + p2**2)
-    ellipse = root + 2.0 * p1
+    x1, p1 = x[:, 0], psi[:, 0]
+    values, root = _disc_and_ellipse_root(x, psi)
     grads = np.zeros((x.shape[0], 2, 2))
     grads[:, 1, 0] = x1 * p1**2 / root
-    return np.stack([disc, ellipse], axis=1), grads
+    return values, grads
+
+
+def _disc_and_ellipse_values(x: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    return _disc_and_ellipse_root(x, psi)[0]
+
+
+def _disc_and_ellipse_root(x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(‖ψ‖, sqrt((x1² + 3)ψ1² + ψ2²) + 2ψ1) as (N, 2), and the square root."""
+    x1, p1, p2 = x[:, 0], psi[:, 0], psi[:, 1]
+    root = np.sqrt((x1**2 + 3.0) * p1**2 + p2**2)
+    values = np.empty((x.shape[0], 2))
+    values[:, 0] = np.sqrt(p1**2 + p2**2)
+    np.add(root, 2.0 * p1, out=values[:, 1])
+    return values, root

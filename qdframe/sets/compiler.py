@@ -65,21 +65,33 @@ class _Vectorized:
         self.entries = [(q, j) for q in range(self.count) for j in range(self.width) if grads[q][j] != 0]
         outputs = list(exprs) + [grads[q][j] for q, j in self.entries]
         self.function = sp.lambdify(list(symbols) + list(self.psi), outputs, modules="numpy", cse=True)
+        self.values_function = sp.lambdify(list(symbols) + list(self.psi), list(exprs), modules="numpy", cse=True)
 
     def __call__(self, y: np.ndarray, psi: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         rows = y.shape[0]
-        args = [y[:, i] for i in range(self.width)]
-        if self.psi:
-            args += [psi[:, j] for j in range(len(self.psi))]  # type: ignore[index]
-        with np.errstate(all="ignore"):  # NaN/inf are reported by the functional's checks
-            out = self.function(*args)
-        values = np.empty((rows, self.count))
-        for q in range(self.count):
-            values[:, q] = out[q]
+        out = self._evaluate(self.function, y, psi)
+        values = self._values(out, rows)
         grads = np.zeros((rows, self.count, self.width))
         for (q, j), value in zip(self.entries, out[self.count :]):
             grads[:, q, j] = value
         return values, grads
+
+    def values(self, y: np.ndarray, psi: np.ndarray | None = None) -> np.ndarray:
+        """The values of __call__ alone, without computing the gradients."""
+        return self._values(self._evaluate(self.values_function, y, psi), y.shape[0])
+
+    def _evaluate(self, function: Callable, y: np.ndarray, psi: np.ndarray | None) -> list:
+        args = [y[:, i] for i in range(self.width)]
+        if self.psi:
+            args += [psi[:, j] for j in range(len(self.psi))]  # type: ignore[index]
+        with np.errstate(all="ignore"):  # NaN/inf are reported by the functional's checks
+            return function(*args)
+
+    def _values(self, out: list, rows: int) -> np.ndarray:
+        values = np.empty((rows, self.count))
+        for q in range(self.count):
+            values[:, q] = out[q]
+        return values
 
 
 def _max_pieces(vertices: list[tuple[sp.Expr, ...]], symbols) -> Callable:
@@ -94,9 +106,9 @@ def _max_pieces(vertices: list[tuple[sp.Expr, ...]], symbols) -> Callable:
     return pieces
 
 
-def _min_pieces(formulas: list[sp.Expr], symbols, dim: int) -> Callable:
+def _min_group(formulas: list[sp.Expr], symbols, dim: int, label: str) -> MinGroup:
     vectorized = _Vectorized(formulas, symbols, _psi(dim))
-    return lambda y, psi: vectorized(y, psi)
+    return MinGroup(lambda y, psi: vectorized(y, psi), label, values=vectorized.values)
 
 
 def _scalar_pieces(exprs: list[sp.Expr], symbols) -> Callable:
@@ -184,7 +196,7 @@ def compile_sets(
         if support.signs and f.dim != 1:
             raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
         max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
-        min_groups = tuple(MinGroup(_min_pieces(gs, symbols, f.dim), label) for label, gs in support.mins)
+        min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
         signs = tuple(_sign_term(label, a, s, band, symbols, f"{model} {name}") for label, a, s, band in support.signs)
         blocks.append(SetBlock(tuple(coords), max_groups, min_groups, name, signs))
     compiled_surface = None

@@ -50,6 +50,9 @@ class Faulty(InclusionModel):
             grad[:, 0, 1] = psi[:, 0] * (0.5 if fault == "min" else 1.0)
             return (y[:, 1] * psi[:, 0] + 1.0)[:, None], grad
 
+        def circle_values(y, psi):  # circle's values alone, or wrong ones
+            return (y[:, 1] * psi[:, 0] + (1.1 if fault == "values" else 1.0))[:, None]
+
         def shape(y):
             values = np.stack([y[:, 1], -y[:, 1]], axis=1)[:, :, None]
             jac = np.zeros((y.shape[0], 2, 1, y.shape[1]))
@@ -68,7 +71,7 @@ class Faulty(InclusionModel):
 
         return (
             SetBlock.equation(0, square, name="a'", signs=(SignTerm((amplitude,), _linear([0, -1, 0])),)),
-            SetBlock((1,), (MaxGroup(shape, "±b"),), (MinGroup(circle, "circle"),), name="b'"),
+            SetBlock((1,), (MaxGroup(shape, "±b"),), (MinGroup(circle, "circle", values=circle_values),), name="b'"),
         )
 
     def surface(self):
@@ -103,6 +106,7 @@ def test_a_correct_model_with_every_kind_of_piece_passes():
     [
         ("gradient", "a' max-group", "wrong gradient"),
         ("min", "min-group 'circle'", "wrong gradient"),
+        ("values", "min-group 'circle' values", "values differ"),
         ("surface", "surface", "wrong gradient"),
         ("cost", "cost max-group", "wrong gradient"),
         ("nan", "a' max-group", "non-finite"),

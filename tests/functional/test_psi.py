@@ -6,6 +6,8 @@ evaluations of ℓ."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -310,3 +312,33 @@ def test_the_merged_scan_keeps_the_first_best_sample_with_ties_nan_and_inf():
         for begin in (None, far):
             new = maximize_on_sphere(objective, nodes, 2, samples=samples, start=begin)
             assert _same_bits(new, previous_maximize(objective, nodes, 2, samples=samples, start=begin))
+
+
+class _WithoutValues:
+    """A model whose min-groups lose their values-only function: ψ* from `pieces` alone."""
+
+    def __init__(self, model):
+        self._model = model
+
+    def __getattr__(self, name):
+        return getattr(self._model, name)
+
+    def blocks(self):
+        return tuple(replace(block, min_groups=tuple(replace(g, values=None) for g in block.min_groups))
+                     for block in self._model.blocks())
+
+
+@pytest.mark.parametrize("name", S2_MODELS + ["test-balls-3"])
+def test_values_only_pieces_give_the_same_psi_bit_for_bit(name):
+    """The search evaluates a min-group's `values` where the model gives one (paper-7.2 and the
+    set language do) instead of its pieces' values: the same ψ*, ℓ and h at every iterate."""
+    model = _model(name)
+    assert any(g.values is not None for block in model.blocks() for g in block.min_groups)
+    with_values = Functional(model, Grid(model.T, 301))
+    without = Functional(_WithoutValues(model), Grid(model.T, 301))
+    assert not any(g.values is not None for block in without.blocks for g in block.min_groups)
+    for xi in _iterates(with_values):
+        for side, ref in zip(_sphere_states(with_values, xi), _sphere_states(without, xi)):
+            np.testing.assert_array_equal(side.psi, ref.psi)
+            np.testing.assert_array_equal(side.ell, ref.ell)
+            np.testing.assert_array_equal(side.h, ref.h)
