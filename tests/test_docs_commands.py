@@ -42,11 +42,13 @@ NOT_RUN = {
     # machine with two dask workers; the quick suite runs the same code (and runs here and in
     # tests/bench/test_bench_run.py)
     "qdframe bench run --suite standard --peers --executor dask --workers 2 --out standard": "an hour-long measurement",
-    # every path and paper model at N = 1001, 10001, 100001: 3 min 57 s on the idle 2-core machine (2026-11-25);
+    # every path and paper model at N = 1001, 10001, 100001: 3 min 22 s on the idle 2-core machine (2026-11-25);
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
     "qdframe bench scale": "a 4-minute measurement",
-    # the same at N = 100001 alone, each cell in three processes: 9 min 50 s (2026-11-25)
-    "qdframe bench scale --nodes 100001 --repeat 3": "a 10-minute measurement",
+    # the same at N = 100001 alone, each cell in three processes: 8 min 35 s (2026-11-25)
+    "qdframe bench scale --nodes 100001 --repeat 3": "a 9-minute measurement",
+    # paper-7.2 alone at N = 100001, both paths, three processes each: 2 min 5 s (2026-11-25)
+    "qdframe bench scale --models paper-7.2 --nodes 100001 --repeat 3": "a 2-minute measurement",
     # paper-7.3 at N = 100001 with the default continuation: solved in 171 iterations, 470 s on
     # the 2-core machine with a test run on the other core (2026-11-24); the same solve at
     # N = 101 runs in tests/test_masses_and_signs.py
