@@ -236,9 +236,10 @@ class _Checker:
         worst = float(np.max(error, initial=0.0))
         if worst > self.tol:
             sample, piece = np.unravel_index(int(np.argmax(error)), error.shape)
+            direction = ", ".join(f"{v:.4g}" for v in psi[sample])
             return PieceCheck(label, "values differ", worst,
-                              f"piece {piece + 1} is {given[sample, piece]:.6g}, pieces() gives "
-                              f"{expected[sample, piece]:.6g}, at {self._point(int(sample))}")
+                              f"values() gives {given[sample, piece]:.6g} for piece {piece + 1}, pieces() "
+                              f"{expected[sample, piece]:.6g}, at {self._point(int(sample))}, ψ = ({direction})")
         return PieceCheck(label, "ok", worst)
 
     def amplitude(self, label: str, groups) -> PieceCheck:

@@ -89,6 +89,7 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
         self.start_given = np.isfinite(model.x0)  # x_i(0) = x0_i given; NaN: free
         self.psi_samples = psi_samples
         self._psi_memo: dict[int, list[tuple[bytes, np.ndarray]]] = {}  # per S_k block: recent (inputs, ψ*)
+        self._values_checked: set[int] = set()  # min-groups whose `values` agreed with their pieces once
         self.free = np.ones((grid.nodes, self.dim), dtype=bool)
         self.free[0, : self.n] = ~self.start_given  # a given x_i(t_0) = x0_i is not an unknown
         self.resolved = dict(model.resolved)  # z_i ≡ x_j: z_i is not an unknown

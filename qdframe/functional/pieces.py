@@ -13,6 +13,7 @@ iterate. h_b = max(0, ℓ(ψ*)) is the distance of z_b from F_b (paper (3.13)).
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,8 @@ import numpy as np
 from ..errors import ModelOutputError
 from ..model import SetBlock
 from .psi import maximize_on_sphere
+
+VALUES_TOL = 1e-9  # a min-group's `values` agrees with its pieces' values to this, relative to max(1, |g|)
 
 
 @dataclass
@@ -129,6 +132,39 @@ class Pieces:
         self._check(label, g, (x.shape[0], None))
         self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
         return g, grad
+
+    def _min_values(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray,
+                    node_of: Callable[[int], int]) -> np.ndarray:
+        """g of a min-group without its gradients, for the search of ψ*: its `values` where
+        the model gives one, the first time for this functional checked against its pieces'
+        values at the same points (a `values` that disagrees would send the search to a
+        wrong ψ* and make h, the inclusion check included, too small). node_of: the grid
+        node of a row of x."""
+        if group.values is None:
+            return group.pieces(x, psi)[0]
+        g = group.values(x, psi)
+        if id(group) not in self._values_checked:
+            expected = np.asarray(group.pieces(x, psi)[0])
+            label = f"block {block.name or block.coords} min-group {group.name!r}"
+            g = np.asarray(g)
+            if g.shape != expected.shape:
+                raise ModelOutputError(f"model {self.model.name!r}: {label}: values(x, ψ) returned shape {g.shape}, "
+                                       f"pieces(x, ψ) values of shape {expected.shape}", label=f"{label} values")
+            with np.errstate(invalid="ignore"):
+                wrong = ~((np.abs(g - expected) <= VALUES_TOL * np.maximum(1.0, np.abs(expected)))
+                          | (np.isnan(g) & np.isnan(expected)) | (g == expected))
+            if wrong.any():
+                row, piece = (int(i) for i in np.argwhere(wrong)[0])
+                node = node_of(row)
+                state = ", ".join(f"{v:.6g}" for v in x[row, : self.n])
+                direction = ", ".join(f"{v:.6g}" for v in psi[row])
+                raise ModelOutputError(
+                    f"model {self.model.name!r}: {label}: values(x, ψ) gives {g[row, piece]:.9g} for piece "
+                    f"{piece + 1}, pieces(x, ψ) {expected[row, piece]:.9g}, at node {node} "
+                    f"(t = {self.grid.t[node]:.6g}, x = ({state}), ψ = ({direction})); `values` must return "
+                    f"the values of `pieces` (qdframe check-model finds such errors)", label=f"{label} values", node=node)
+            self._values_checked.add(id(group))
+        return g
 
     def _switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked."""
@@ -244,7 +280,8 @@ class Pieces:
                 if block.min_groups:
                     flat = psi.reshape(zb_at.shape[0] * count, k)
                     for group in block.min_groups:
-                        g = group.piece_values(y_rep, flat)
+                        g = self._min_values(block, group, y_rep, flat, lambda row: row // count if at is None
+                                             else int(at[row // count]))
                         value -= _reduce_last(np.minimum, g.reshape(zb_at.shape[0], count, -1))
                 return value
 

@@ -342,3 +342,42 @@ def test_values_only_pieces_give_the_same_psi_bit_for_bit(name):
             np.testing.assert_array_equal(side.psi, ref.psi)
             np.testing.assert_array_equal(side.ell, ref.ell)
             np.testing.assert_array_equal(side.h, ref.h)
+
+
+class _WrongValues:
+    """paper-7.2 whose `values` triples the ellipse's piece."""
+
+    def __init__(self):
+        self._model = qdframe.load_model("paper-7.2")
+
+    def __getattr__(self, name):
+        return getattr(self._model, name)
+
+    def blocks(self):
+        (block,) = self._model.blocks()
+        (group,) = block.min_groups
+        wrong = replace(group, values=lambda x, psi: group.values(x, psi) * np.array([1.0, 3.0]))
+        return (replace(block, min_groups=(wrong,)),)
+
+
+def test_values_that_disagree_with_the_pieces_stop_the_solve_with_the_group_and_node_named():
+    """A wrong `values` would send the search to a wrong ψ* and shrink h (a false `solved`):
+    the first search of a functional compares it with the pieces' values."""
+    with pytest.raises(qdframe.ModelOutputError, match=r"min-group 'B2 ∩ E2\(x\)': values\(x, ψ\) gives .* "
+                                                      r"for piece 2, pieces\(x, ψ\) .* at node \d+") as raised:
+        qdframe.solve(_WrongValues(), nodes=101)
+    assert raised.value.label.endswith("values") and raised.value.node is not None
+
+
+def test_values_are_compared_with_the_pieces_once_per_functional(monkeypatch):
+    model = qdframe.load_model("paper-7.2")
+    functional = Functional(model, Grid(model.T, 101))
+    (group,) = functional.blocks[0].min_groups
+    calls = []
+    original = group.pieces
+    monkeypatch.setattr(functional, "blocks", (replace(functional.blocks[0], min_groups=(
+        replace(group, pieces=lambda x, psi: calls.append(x.shape[0]) or original(x, psi)),)),))
+    for xi in _iterates(functional, 3):
+        _sphere_states(functional, xi)
+    searched = [rows for rows in calls if rows != 101]  # the pieces at ψ*, one row per node, are the sides'
+    assert len(searched) == 1
