@@ -72,10 +72,6 @@ class MinGroup:
     name: str = "min"
     values: MinValues | None = None
 
-    def piece_values(self, x: np.ndarray, psi: np.ndarray) -> np.ndarray:
-        """g (N, m): `values` where given, else the values of `pieces`."""
-        return self.values(x, psi) if self.values is not None else self.pieces(x, psi)[0]
-
 
 @dataclass(frozen=True)
 class SignTerm:
