@@ -13,16 +13,17 @@ iterate. h_b = max(0, ℓ(ψ*)) is the distance of z_b from F_b (paper (3.13)).
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ModelOutputError
 from ..model import SetBlock
-from .psi import maximize_on_sphere
+from .psi import maximize_on_sphere, sphere_samples
 
 VALUES_TOL = 1e-9  # a min-group's `values` agrees with its pieces' values to this, relative to max(1, |g|)
+VALUES_CHECK_NODES = 64  # nodes (spread over the grid) where a functional compares `values` with the pieces
+VALUES_CHECK_DIRECTIONS = 32  # directions of S_k per node there
 
 
 @dataclass
@@ -133,20 +134,22 @@ class Pieces:
         self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
         return g, grad
 
-    def _min_values(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray,
-                    node_of: Callable[[int], int]) -> np.ndarray:
-        """g of a min-group without its gradients, for the search of ψ*: its `values` where
-        the model gives one, the first time for this functional checked against its pieces'
-        values at the same points (a `values` that disagrees would send the search to a
-        wrong ψ* and make h, the inclusion check included, too small). node_of: the grid
-        node of a row of x."""
-        if group.values is None:
-            return group.pieces(x, psi)[0]
-        g = group.values(x, psi)
-        if id(group) not in self._values_checked:
-            expected = np.asarray(group.pieces(x, psi)[0])
+    def _check_values(self, block: SetBlock, y: np.ndarray) -> None:
+        """Each min-group's `values` against its pieces' values, once per functional, at
+        VALUES_CHECK_NODES nodes spread over the grid and VALUES_CHECK_DIRECTIONS directions
+        of S_k each: the search of ψ* trusts `values`, and one that disagreed would find a
+        wrong ψ* and make h, the inclusion check included, too small."""
+        groups = [group for group in block.min_groups if group.values is not None and id(group) not in self._values_checked]
+        if not groups:
+            return
+        nodes = np.unique(np.linspace(0, y.shape[0] - 1, min(y.shape[0], VALUES_CHECK_NODES)).astype(int))
+        directions = sphere_samples(block.size, VALUES_CHECK_DIRECTIONS)
+        x = np.repeat(y[nodes], len(directions), axis=0)
+        psi = np.tile(directions, (nodes.size, 1))
+        for group in groups:
             label = f"block {block.name or block.coords} min-group {group.name!r}"
-            g = np.asarray(g)
+            expected = np.asarray(group.pieces(x, psi)[0])
+            g = np.asarray(group.values(x, psi))
             if g.shape != expected.shape:
                 raise ModelOutputError(f"model {self.model.name!r}: {label}: values(x, ψ) returned shape {g.shape}, "
                                        f"pieces(x, ψ) values of shape {expected.shape}", label=f"{label} values")
@@ -155,7 +158,7 @@ class Pieces:
                           | (np.isnan(g) & np.isnan(expected)) | (g == expected))
             if wrong.any():
                 row, piece = (int(i) for i in np.argwhere(wrong)[0])
-                node = node_of(row)
+                node = int(nodes[row // len(directions)])
                 state = ", ".join(f"{v:.6g}" for v in x[row, : self.n])
                 direction = ", ".join(f"{v:.6g}" for v in psi[row])
                 raise ModelOutputError(
@@ -164,7 +167,6 @@ class Pieces:
                     f"(t = {self.grid.t[node]:.6g}, x = ({state}), ψ = ({direction})); `values` must return "
                     f"the values of `pieces` (qdframe check-model finds such errors)", label=f"{label} values", node=node)
             self._values_checked.add(id(group))
-        return g
 
     def _switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked."""
@@ -263,7 +265,7 @@ class Pieces:
             memo.insert(0, memo.pop(hit))
             psi = memo[0][1]
         else:
-
+            self._check_values(block, y)
             rows: dict = {}  # (node subset, samples per node) -> the subset, z_b, each max-group's f, y per sample
 
             def ell(psi: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:  # psi (n, M, k) -> (n, M)
@@ -280,8 +282,7 @@ class Pieces:
                 if block.min_groups:
                     flat = psi.reshape(zb_at.shape[0] * count, k)
                     for group in block.min_groups:
-                        g = self._min_values(block, group, y_rep, flat, lambda row: row // count if at is None
-                                             else int(at[row // count]))
+                        g = group.values(y_rep, flat) if group.values is not None else group.pieces(y_rep, flat)[0]
                         value -= _reduce_last(np.minimum, g.reshape(zb_at.shape[0], count, -1))
                 return value
 

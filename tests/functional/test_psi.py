@@ -345,10 +345,12 @@ def test_values_only_pieces_give_the_same_psi_bit_for_bit(name):
 
 
 class _WrongValues:
-    """paper-7.2 whose `values` triples the ellipse's piece."""
+    """paper-7.2 whose `values` triples the ellipse's piece, or (`left`) adds 0.1 to it
+    only where ψ1 < 0."""
 
-    def __init__(self):
+    def __init__(self, left=False):
         self._model = qdframe.load_model("paper-7.2")
+        self.left = left
 
     def __getattr__(self, name):
         return getattr(self._model, name)
@@ -356,8 +358,13 @@ class _WrongValues:
     def blocks(self):
         (block,) = self._model.blocks()
         (group,) = block.min_groups
-        wrong = replace(group, values=lambda x, psi: group.values(x, psi) * np.array([1.0, 3.0]))
-        return (replace(block, min_groups=(wrong,)),)
+
+        def values(x, psi):
+            if self.left:
+                return group.values(x, psi) + np.where(psi[:, :1] < 0, [[0.0, 0.1]], 0.0)
+            return group.values(x, psi) * np.array([1.0, 3.0])
+
+        return (replace(block, min_groups=(replace(group, values=values),)),)
 
 
 def test_values_that_disagree_with_the_pieces_stop_the_solve_with_the_group_and_node_named():
@@ -367,6 +374,15 @@ def test_values_that_disagree_with_the_pieces_stop_the_solve_with_the_group_and_
                                                       r"for piece 2, pieces\(x, ψ\) .* at node \d+") as raised:
         qdframe.solve(_WrongValues(), nodes=101)
     assert raised.value.label.endswith("values") and raised.value.node is not None
+
+
+def test_values_wrong_only_in_some_directions_are_found_on_a_large_grid():
+    """The comparison samples directions of S_k at nodes spread over the grid, whatever N
+    (the scan's first chunk holds a single direction per node at N = 1e5)."""
+    model = _WrongValues(left=True)
+    functional = Functional(model, Grid(model.T, 100001))
+    with pytest.raises(qdframe.ModelOutputError, match=r"for piece 2, .* ψ = \(-"):
+        functional.objective(functional.initial_point())
 
 
 def test_values_are_compared_with_the_pieces_once_per_functional(monkeypatch):
