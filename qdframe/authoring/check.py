@@ -77,13 +77,17 @@ class CheckReport:
         for p in self.pieces:
             status = p.status + (f" — {p.detail}" if p.detail and not p.ok else "")
             lines.append(f"  {p.label:<{width}}  {p.worst_error:>11.1e}  {status}")
-        lines.append("all pieces agree with finite differences" if self.ok else f"{len(self.failures)} piece group(s) failed")
+        lines.append(self._agreement() if self.ok else f"{len(self.failures)} piece group(s) failed")
         return "\n".join(lines)
+
+    def _agreement(self) -> str:
+        values = any(p.label.endswith(" values") for p in self.pieces)
+        return "all pieces agree with finite differences" + (" and every values() with its pieces" if values else "")
 
     def message(self) -> str:
         """One line naming the first failure."""
         if self.ok:
-            return f"model {self.model!r}: all pieces agree with finite differences"
+            return f"model {self.model!r}: {self._agreement()}"
         first = self.failures[0]
         more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
         return f"model {self.model!r}: {first.label}: {first.status}: {first.detail}{more}"
