@@ -27,7 +27,7 @@ import numpy as np
 
 from ..argtypes import integer, positive_float
 from ..errors import InputError, QdframeError
-from ..functional.pieces import VALUES_TOL
+from ..functional.pieces import VALUES_TOL, values_error
 from ..model import InclusionModel
 
 
@@ -237,9 +237,7 @@ class _Checker:
         if given.shape != expected.shape:
             return PieceCheck(label, "bad shape", float("nan"),
                               f"values have shape {given.shape}, pieces' values {expected.shape}")
-        error = np.abs(given - expected) / np.maximum(1.0, np.abs(expected))
-        error = np.where(np.isfinite(error) | (np.isnan(given) & np.isnan(expected)), error, np.inf)
-        error = np.nan_to_num(error, nan=0.0)
+        error = values_error(given, expected)
         worst = float(np.max(error, initial=0.0))
         if worst > VALUES_TOL:
             sample, piece = np.unravel_index(int(np.argmax(error)), error.shape)

@@ -26,6 +26,15 @@ VALUES_CHECK_NODES = 64  # nodes (spread over the grid) where a functional compa
 VALUES_CHECK_DIRECTIONS = 32  # directions of S_k per node there
 
 
+def values_error(given: np.ndarray, expected: np.ndarray) -> np.ndarray:
+    """|values − pieces' values| / max(1, |pieces' values|) per entry: 0 where the two are
+    equal (infinities included) or both NaN, inf where only one is NaN."""
+    with np.errstate(invalid="ignore"):
+        error = np.abs(given - expected) / np.maximum(1.0, np.abs(expected))
+        error = np.where((given == expected) | (np.isnan(given) & np.isnan(expected)), 0.0, error)
+    return np.where(np.isnan(error), np.inf, error)
+
+
 @dataclass
 class _Piece:
     """One group of pieces at ψ: values (N, m) and gradients (N, m, n + m)."""
@@ -153,9 +162,7 @@ class Pieces:
             if g.shape != expected.shape:
                 raise ModelOutputError(f"model {self.model.name!r}: {label}: values(x, ψ) returned shape {g.shape}, "
                                        f"pieces(x, ψ) values of shape {expected.shape}", label=f"{label} values")
-            with np.errstate(invalid="ignore"):
-                wrong = ~((np.abs(g - expected) <= VALUES_TOL * np.maximum(1.0, np.abs(expected)))
-                          | (np.isnan(g) & np.isnan(expected)) | (g == expected))
+            wrong = values_error(g, expected) > VALUES_TOL
             if wrong.any():
                 row, piece = (int(i) for i in np.argwhere(wrong)[0])
                 node = int(nodes[row // len(directions)])
