@@ -13,7 +13,7 @@ if TYPE_CHECKING:  # optional extras (`pip install 'qdframe[frames]'`), imported
     import pandas
     import xarray
 
-STATUSES = ("solved", "stationary", "max_iter", "failed")
+from .status import STATUSES, Status  # noqa: F401  (the statuses, in one place)
 
 
 @dataclass(frozen=True)
