@@ -75,8 +75,18 @@ class MinGroup:
 
 @dataclass(frozen=True)
 class SignTerm:
-    """a(y)·Sgn(s(y)), Filippov's set-valued sign term (paper Section 5): {a·sign s} for
-    s ≠ 0 and a·[−1, 1] at s = 0, with the amplitude a(y) = Σ_i max_q a_iq(y) ≥ 0.
+    """sense·a(y)·Sgn(s(y)), Filippov's set-valued sign term (paper Section 5): {a·sign s}
+    for s ≠ 0 and a·[−1, 1] at s = 0, with the amplitude a(y) = Σ_i max_q a_iq(y) ≥ 0 and
+    `sense` +1 or −1.
+
+    One switch, one selection: sign terms whose `switch` is the same callable share one
+    selection λ ∈ Sgn(s) per node (exact signs), each contributing sense·a(y)·λ. A switch
+    s that enters one coordinate as +a·Sgn(s) and another as −b·Sgn(s) (a friction law whose
+    principal axes are not the coordinate axes) is two terms on the same callable with
+    senses +1 and −1: writing the second as b·Sgn(−s) with a new callable would give it a
+    selection of its own, and F would be larger than Filippov's set. The set language
+    (:mod:`qdframe.sets`) does this for you: Sgn(c·s) for any constant c ≠ 0 shares s's
+    selection.
 
     `amplitude` is a constant a ≥ 0 or a tuple of groups, each `pieces(y)` returning
     values (N, m) and gradients (N, m, n + m) (|y_i| is the group {y_i, −y_i}: see
@@ -95,6 +105,7 @@ class SignTerm:
     switch: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     band: float = 1e-3
     name: str = "sgn"
+    sense: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -257,6 +268,8 @@ class InclusionModel(ABC):
             for term in block.signs:
                 if not (term.band >= 0):  # NaN fails too; inf is allowed
                     raise InputError(f"{type(self).__name__} sign term {term.name!r} band", "a number ≥ 0", term.band)
+                if term.sense not in (1.0, -1.0):
+                    raise InputError(f"{type(self).__name__} sign term {term.name!r} sense", "+1 or −1", term.sense)
         for i, j in self.resolved.items():
             if not (0 <= i < self.n_states and 0 <= j < self.n_states):
                 raise InputError(f"{type(self).__name__}.resolved", f"pairs i: j of indices in 0..{self.n_states - 1}", (i, j))

@@ -205,22 +205,23 @@ class Pieces:
         κ = ψλ with a selection (column, λ), else the band's κ_ψ(s)."""
         amplitude, groups = self._amplitude(block, term, y)
         kappa_grad = np.zeros((y.shape[0], self.width))
-        if selection is not None:  # the point a·λ of Filippov's set: c = a·ψλ
-            column, lam = selection
-            kappa_grad[:, column] = psi
-            return _SignPart(psi * lam, kappa_grad, amplitude, groups)
+        if selection is not None:  # the point sense·a·λ of Filippov's set: c = a·ψ·sense·λ
+            column, signed, sense = selection
+            kappa_grad[:, column] = psi * sense
+            return _SignPart(psi * signed, kappa_grad, amplitude, groups)
         s, ds = self._switch(block, term, y)
-        kappa, slope = _band_kappa(term.band, s, psi)
+        kappa, slope = _band_kappa(term.band, s, psi * term.sense)  # c(−a·Sgn(s), ψ) = c(a·Sgn(s), −ψ)
         if slope is not None:
             kappa_grad[:, : self.args] = slope[:, None] * ds
         return _SignPart(kappa, kappa_grad, amplitude, groups)
 
-    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray] | None]:
-        """For each sign term of block b: (its column in y = (x, u, λ), its λ), or None (band)."""
+    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray, float] | None]:
+        """For each sign term of block b: (its selection's column in y = (x, u, λ), sense·λ,
+        its sense), or None (band). Terms on one switch share the column (model.SignTerm)."""
         if not self.p:
             return [None] * len(self.blocks[b].signs)
-        columns = [k for k, (block, _) in zip(self.sign_columns, self.sign_terms) if block == b]
-        return [(self.args + k, lam[:, k]) for k in columns]
+        return [(self.args + k, term.sense * lam[:, k], term.sense)
+                for k, (block, term) in zip(self.sign_columns, self.sign_terms) if block == b]
 
     def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,
               maxes: list[tuple[np.ndarray, np.ndarray]] | None = None,
@@ -332,7 +333,8 @@ class Pieces:
             for g in mins:
                 value -= g
             for term, selection, amplitude, s in signs:
-                value -= (psi * selection[1] if selection is not None else _band_kappa(term.band, s, psi)[0]) * amplitude
+                value -= (psi * selection[1] if selection is not None
+                          else _band_kappa(term.band, s, psi * term.sense)[0]) * amplitude
             return value
 
         return np.maximum(0.0, np.maximum(ell(1.0, upper), ell(-1.0, lower)))

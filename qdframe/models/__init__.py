@@ -5,6 +5,7 @@
 - ``paper_sets.py``: Examples 7.1–7.3 in the set language, not registered (the form to
   read; tests check it against the hand-written ones, which the registry serves);
 - ``friction.py``: Filippov problems with exact solutions (``block-stop-stick``, …);
+- ``planar_friction.py``: friction in the plane, in the set language (``orthotropic-puck``);
 - ``bounded_input.py``: problems with a bounded input that the nosnoc peer states too
   (``coulomb-rest-to-rest``, ``sliding-mode-terminal``).
 """

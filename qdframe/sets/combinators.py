@@ -157,7 +157,7 @@ class Scaled(Set):
         if self._number() is not None:
             out.polytopes = [(f"{_s(c)}·{label}", [tuple(c * v for v in vertex) for vertex in vs]) for label, vs in inner.polytopes]
             out.mins = [(f"{_s(c)}·{label}", [_scale_formula(g, c, self.dim) for g in gs]) for label, gs in inner.mins]
-            out.signs = [(label, sp.Abs(c) * a, sp.sign(c) * s, band) for label, a, s, band in inner.signs]
+            out.signs = [(label, c * a, s, band) for label, a, s, band in inner.signs]  # the compiler signs it
             return out.merged()
         if inner.mins:
             raise SetStructureError(

@@ -116,10 +116,49 @@ def _scalar_pieces(exprs: list[sp.Expr], symbols) -> Callable:
     return lambda y: vectorized(y)
 
 
-def _switch(expr: sp.Expr, symbols) -> Callable:
-    """s(y) and ∇s; one callable per distinct expression, so that sign terms on the same
-    surface share one Filippov selection (:class:`~qdframe.functional.Functional`)."""
-    return _switch_cached(expr, tuple(symbols))
+SAME_SWITCH_RTOL = 1e-12  # coefficient ratios equal to this: two switches are one surface
+
+
+class _Switches:
+    """The distinct switching functions of one model: s(y) and ∇s, one callable per surface.
+
+    Sign terms on one surface share one Filippov selection (:class:`~qdframe.model.SignTerm`),
+    and Sgn(c·s) = sign(c)·Sgn(s) for every constant c ≠ 0, so a switch that is a constant
+    multiple of one seen before (−s, 2s, or 0.866·v1 − 0.5·v2 against −0.866·v1 + 0.5·v2)
+    is that one, with the sign of the multiple: :meth:`find` returns (callable, ±1).
+    """
+
+    def __init__(self, symbols) -> None:
+        self.symbols = tuple(symbols)
+        self.known: list[tuple[dict, Callable]] = []
+
+    def find(self, expr: sp.Expr) -> tuple[Callable, float]:
+        terms = _coefficients(expr)
+        for reference, switch in self.known:
+            ratio = _ratio(terms, reference)
+            if ratio is not None:
+                return switch, 1.0 if ratio > 0 else -1.0
+        switch = _switch_cached(sp.expand(expr), self.symbols)
+        self.known.append((terms, switch))
+        return switch, 1.0
+
+
+def _coefficients(expr: sp.Expr) -> dict:
+    """{term without its numeric factor: the factor} of the expanded expression."""
+    return {key: complex(value) for key, value in sp.expand(expr).as_coefficients_dict().items() if value != 0}
+
+
+def _ratio(terms: dict, reference: dict) -> float | None:
+    """c with terms = c·reference (the same keys, every coefficient ratio c to SAME_SWITCH_RTOL), or None."""
+    if not terms or terms.keys() != reference.keys():
+        return None
+    ratios = [terms[key] / reference[key] for key in terms]
+    c = ratios[0]
+    if abs(c.imag) > 0 or c.real == 0:
+        return None
+    if all(abs(r - c) <= SAME_SWITCH_RTOL * abs(c) for r in ratios):
+        return c.real
+    return None
 
 
 @lru_cache(maxsize=None)
@@ -143,22 +182,24 @@ class Compiled:
     cost: Cost | None
 
 
-def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, symbols, where: str) -> SignTerm:
+def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, switches: _Switches,
+               where: str) -> SignTerm:
+    """a·Sgn(s) = |a|·Sgn(±s) as sense·|a|·Sgn(s0), s0 the model's switch that ±s is a
+    constant multiple of (the first term on a surface has sense +1: its |a|·Sgn(±s) as written)."""
     amplitude = sp.sympify(amplitude)
+    name = label if amplitude == 1 else f"({_s(amplitude)})·{label}" if amplitude.is_Add else f"{_s(amplitude)}·{label}"
     if amplitude.is_number:
         a = float(amplitude)
         value: float | tuple = abs(a)
         switch = switch if a >= 0 else -switch
-        if a == 0:
-            value = 0.0
     else:
         terms = sp.Add.make_args(sp.expand(amplitude, deep=False))
         if all(t.as_coeff_Mul()[0] < 0 for t in terms):  # −a·Sgn(s) = a·Sgn(−s)
             amplitude, switch = -amplitude, -switch
         maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
-        value = tuple(_scalar_pieces(group, symbols) for group in maxes)
-    name = label if amplitude == 1 else f"({_s(amplitude)})·{label}" if amplitude.is_Add else f"{_s(amplitude)}·{label}"
-    return SignTerm(value, _switch(sp.expand(switch), symbols), band, name)
+        value = tuple(_scalar_pieces(group, switches.symbols) for group in maxes)
+    callable_, sense = switches.find(switch)
+    return SignTerm(value, callable_, band, name, sense)
 
 
 def compile_sets(
@@ -173,6 +214,7 @@ def compile_sets(
     """Compile {state or tuple of states: set} (+ surface formulas, cost integrand) to qdframe's pieces."""
     symbols = tuple(states) + tuple(controls)
     index = {s: i for i, s in enumerate(states)}
+    switches = _Switches(symbols)
     blocks: list[SetBlock] = []
     for key, value in sets.items():
         keys = tuple(key) if isinstance(key, (tuple, list)) else (key,)
@@ -197,7 +239,7 @@ def compile_sets(
             raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
         max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
         min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
-        signs = tuple(_sign_term(label, a, s, band, symbols, f"{model} {name}") for label, a, s, band in support.signs)
+        signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs)
         blocks.append(SetBlock(tuple(coords), max_groups, min_groups, name, signs))
     compiled_surface = None
     if surface is not None:
