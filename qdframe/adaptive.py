@@ -1,95 +1,117 @@
-"""The error estimate of a result, switch location and refinement to a requested accuracy.
+"""Refinement to a requested accuracy, and the certificate of a fixed grid.
 
-**Error estimate.** The same problem is solved again on the bisected mesh (every interval
-halved: :meth:`~qdframe.grid.Grid.bisected`), from the result interpolated, by
-gauss-newton. With x_h and x_{h/2} the two discrete solutions and p ≥ 1 the order,
-x_h − x* ≈ (x_h − x_{h/2})·2^p/(2^p − 1), a factor ≤ 2 for every p ≥ 1; the estimate
-takes 2.5 (p = 1 with a quarter's margin for the higher-order terms on coarse grids):
+`accuracy` is a target for max_k |x(t_k) − x*(t_k)| relative to the trajectory's size: an
+error estimate (:mod:`qdframe.estimates`) at most accuracy·max(1, max|x|) certifies it.
 
-    error_estimate = 2.5·max_t |x_h(t) − x_{h/2}(t)| + consistency error + 8ε·max(1, |x|)
-                                                       over the points of the result's grid,
-
-1.25 times the error in the limit for a first-order scheme and 2.2 times for p = 3 on
-smooth problems, and still on the safe side where a switch inside an interval drops
-the order to 1. x_{h/2} between its points is the scheme's own interpolant (the
-polynomial through the points of its interval). The estimate is defined for a `solved`
-result (it compares two solutions); it is None otherwise, or when the bisected solve
-does not end `solved` (the message says so).
-
-**Accuracy.** `accuracy=` refines until the estimate meets it: each round moves mesh
-points onto the located switch times (:mod:`qdframe.switches`) and re-solves until they
-settle, estimates, and lays out a new mesh that equidistributes the local error (the
-change of x_h − x_{h/2} within each interval), sized to meet the accuracy
-(:func:`refine`), until the estimate is ≤ accuracy or the next mesh would pass
-`max_nodes`.
+**Refinement** (:func:`to_accuracy`). The first solve runs implicit Euler on a coarse mesh,
+which finds sticking and sliding robustly; where it cannot end `solved` (a two-point problem
+whose end condition a first-order scheme on a coarse mesh cannot meet exactly, as a block
+that stops and sticks with both ends given), the solve is repeated with Radau IIA on a
+finer uniform mesh. Then each round moves mesh points onto the located switch times
+(:mod:`qdframe.switches`) and re-solves until they settle, estimates, and lays out a new
+mesh that equidistributes the local error (:func:`refine`), sized to meet the target,
+until the estimate meets it or the next mesh would pass `max_nodes`. An estimate always
+belongs to the trajectory returned with it. A run that cannot meet its target returns the
+trajectory with the smallest estimate it found, and says why it stopped.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+
 import numpy as np
 
+from .estimates import Estimate, Resolve, estimate, like
 from .functional import Functional
-from .grid import Grid
+from .grid import Grid, make_scheme
 from .result import SolveResult
 from .switches import switch_times
 
-ESTIMATE_FACTOR = 2.5  # 2^p/(2^p − 1) ≤ 2 for every order p ≥ 1, with a quarter's margin
-ROUNDING = 8 * np.finfo(float).eps  # relative: the estimate never claims less than rounding
 SWITCH_SETTLED = 1e-12  # relative to T: a switch time that moves less between rounds has settled
 SWITCH_ROUNDS = 6  # at most this many re-solves to settle the switch times on one mesh
 REFINE_MARGIN = 0.85  # a refined mesh aims at this fraction of the accuracy
 MONITOR_FLOOR = 0.05  # the error density never falls below this fraction of its mean
+FALLBACK_SCHEME = "radau-iia"  # where the first solve is not solved: this scheme …
+FALLBACK_NODES = 101  # … on this many uniform points
 
-Resolve = Callable[[Functional, SolveResult], SolveResult]  # a descent on a functional from a result
+
+def tolerance(accuracy: float, result: SolveResult) -> float:
+    """The absolute target of an estimate: accuracy·max(1, max|x|)."""
+    return accuracy * max(1.0, float(np.max(np.abs(result.x))))
 
 
 @dataclasses.dataclass
-class Estimate:
-    """The estimate, the local error per mesh interval (K,) and the bisected solve."""
+class Certified:
+    """The outcome of :func:`to_accuracy` or :func:`on_fixed_grid`: the trajectory returned,
+    its functional, its own estimate, and a note on how the refinement ended."""
 
-    value: float | None
-    local: np.ndarray | None
-    companion: SolveResult | None
+    functional: Functional
+    result: SolveResult
+    estimate: Estimate
+    note: str = ""
 
 
-def estimate(functional: Functional, result: SolveResult, resolve: Resolve) -> Estimate:
-    """The error estimate of a solved `result` on `functional`'s grid (module docstring)."""
+def on_fixed_grid(functional: Functional, result: SolveResult, companion: Resolve, certificate: str | None,
+                  wanted: bool) -> Certified:
+    """The estimate of a fixed-grid result (none when not `wanted` or not solved)."""
+    if not wanted:
+        return Certified(functional, result, Estimate(None, None, detail="no error estimate: estimate=False"))
+    return Certified(functional, result, estimate(functional, result, companion, certificate))
+
+
+def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, companion: Resolve, accuracy: float,
+                scheme: str, certificate: str | None, max_nodes: int) -> Certified:
+    """Refine from the first solve's `result` on `functional` until the estimate meets
+    `accuracy` (module docstring). `own` re-solves with the user's direction (counted in
+    the history), `companion` is the estimate's solver; `scheme` takes over from the first
+    solve's implicit Euler once its switches have settled."""
+    scheme_name = make_scheme(scheme).name
     if result.status != "solved":
-        return Estimate(None, None, None)
-    finer = like(functional, functional.grid.bisected())
-    companion = resolve(finer, result)
-    if companion.status != "solved":
-        return Estimate(None, None, companion)
-    grid = functional.grid
-    difference = dense(finer.grid, companion.x, grid.t) - result.x  # (N, n)
-    # plus what the two discrete solutions cannot see: x's own consistency error and rounding
-    floor = result.consistency_error + ROUNDING * max(1.0, float(np.max(np.abs(result.x))))
-    value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + floor
-    # local error of interval k: how far x_h − x_{h/2} moves within it, from its first mesh point
-    start = grid.mesh[np.searchsorted(grid.mesh, np.arange(1, grid.nodes)) - 1]  # base(p) of the points p ≥ 1
-    moved = np.max(np.abs(difference[1:] - difference[start]), axis=1)
-    local = np.zeros(grid.mesh.size - 1)
-    np.maximum.at(local, np.searchsorted(grid.mesh, np.arange(1, grid.nodes)) - 1, ESTIMATE_FACTOR * moved)
-    return Estimate(value, local, companion)
-
-
-def dense(grid: Grid, values: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """`values` (at grid.t) at `times` by the scheme's interpolant: on each mesh interval the
-    polynomial through its points (linear for one-step schemes)."""
-    tau = grid.mesh_times
-    interval = np.clip(np.searchsorted(tau, times, side="right") - 1, 0, tau.size - 2)
-    stages = grid.scheme.stages
-    first = grid.mesh[interval]  # the interval's mesh point; its points are first … first + stages
-    out = np.zeros((times.size, values.shape[1]))
-    for i in range(stages + 1):  # Lagrange basis over the interval's stages + 1 points
-        basis = np.ones(times.size)
-        for j in range(stages + 1):
-            if j != i:
-                basis *= (times - grid.t[first + j]) / (grid.t[first + i] - grid.t[first + j])
-        out += basis[:, None] * values[first + i]
-    return out
+        fallback = like(functional, Grid(functional.grid.T, FALLBACK_NODES, FALLBACK_SCHEME))
+        retried = own(fallback, result)
+        if retried.status != "solved":
+            return Certified(functional, result, Estimate(None, None, detail=f"the first solve ended {result.status}"),
+                             f"the first solve ended {result.status}, and on {FALLBACK_NODES} points of "
+                             f"{FALLBACK_SCHEME} {retried.status}")
+        functional, result = fallback, retried
+    else:
+        functional, result = settle_switches(functional, result, own)
+        if result.status == "solved" and scheme_name != functional.grid.scheme.name:
+            functional = like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme))
+            result = own(functional, result)
+    best: Certified | None = None
+    note = ""
+    while result.status == "solved":
+        functional, result = settle_switches(functional, result, own)
+        if result.status != "solved":
+            note = f"the solve on {functional.grid.nodes} points (switch times pinned) ended {result.status}"
+            break
+        found = estimate(functional, result, companion, certificate)
+        if found.value is None:
+            note = f"no error estimate on {functional.grid.nodes} points: {found.detail}"
+            break
+        target = tolerance(accuracy, result)
+        if best is None or found.value < best.estimate.value:  # type: ignore[operator]
+            best = Certified(functional, result, found)
+        if found.value <= target:
+            break
+        tau = refine(functional.grid, found.local, target, found.value)  # type: ignore[arg-type]
+        tau = pin(tau, switch_times(functional, iterate(functional, result)))  # the switches kept on a point
+        finer = Grid.from_mesh(tau, functional.grid.scheme)
+        if finer.nodes > max_nodes:
+            note = f"the next mesh ({finer.nodes} points) would pass max_nodes = {max_nodes}"
+            break
+        functional = like(functional, finer)
+        result = own(functional, result)
+    else:
+        note = f"the solve on {functional.grid.nodes} points ended {result.status}"
+    if best is None:
+        return Certified(functional, result, Estimate(None, None, detail=note), note)
+    if best.result is not result:  # the last trajectory is not the best certified one: return that
+        best.note = note + (f"; returned: the smallest estimate, on {best.functional.grid.nodes} points" if note else "")
+        return best
+    best.note = note
+    return best
 
 
 def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -138,7 +160,8 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     M_k = local_k^{1/(p+1)}/h_k is the error density. K' intervals with equal shares of
     ∫M give a sum of local errors (∫M)^{p+1}/K'^p; K' is chosen so that this sum, scaled by
     estimate/Σ local (how much of the sum reaches the global error), is REFINE_MARGIN·
-    accuracy, and at least 1.25·K. The mesh points follow by inverting the cumulative ∫M.
+    accuracy (absolute), and at least 1.25·K. The mesh points follow by inverting the
+    cumulative ∫M.
     """
     tau = grid.mesh_times
     h = np.diff(tau)
@@ -152,11 +175,6 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     finer = np.interp(np.linspace(0.0, mass[-1], count + 1), mass, tau)
     finer[0], finer[-1] = 0.0, grid.T
     return finer
-
-
-def like(functional: Functional, grid: Grid) -> Functional:
-    """A functional of the same model and sign treatment on `grid`."""
-    return Functional(functional.model, grid, signs=functional.signs, selection_scale=functional.selection_scale)
 
 
 def iterate(functional: Functional, result: SolveResult) -> np.ndarray:

@@ -51,7 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--option", action="append", type=key_value, metavar="KEY=VALUE",
                        help="set a direction option, e.g. --option mu=1e-8 (repeatable; unknown keys list the known)")
     solve.add_argument("--line-search", help="line search (default: the direction's: armijo for gauss-newton, golden for native)")
-    solve.add_argument("--nodes", type=integer(2), help="grid nodes N ≥ 2 (default 101; with --accuracy, 21: the first mesh)")
+    solve.add_argument("--nodes", type=integer(2),
+                       help="a fixed grid of N ≥ 2 points, `solved` when its error estimate meets 1e-6 (without "
+                            "--nodes: the mesh is refined to --accuracy from 21 points; with --accuracy: the first mesh)")
     solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
     solve.add_argument("--continuation", type=continuation, metavar="auto|none|N,N,..",
                        help="coarser grids to solve on first, e.g. 11,101; auto: 11, 101, ... below N "
@@ -73,12 +75,16 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
                        help="`solved` needs every pointwise residual ≤ this (default 1e-8)")
     solve.add_argument("--accuracy", type=positive_float,
-                       help="refine the mesh (switch times located) until the error estimate is ≤ this "
-                            "(scheme default radau-iia)")
+                       help="refine the mesh (switch times located) until the error estimate is ≤ X·max(1, max|x|) "
+                            "(default 1e-6 without --nodes; scheme default radau-iia)")
+    solve.add_argument("--certificate", choices=("bisection", "replay"),
+                       help="what makes the error estimate (default: replay where the solutions form a set or the "
+                            "problem is an initial-value problem, else bisection)")
     solve.add_argument("--max-nodes", type=integer(3), default=100_001,
                        help="the most points --accuracy may use (default 100001)")
     solve.add_argument("--no-estimate", action="store_true",
-                       help="skip the error estimate (a second solve on the bisected mesh)")
+                       help="skip the error estimate on a fixed grid (--nodes): the result is then at most "
+                            "`uncertified`")
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON (- : to stdout, the summary to stderr)")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -168,7 +174,7 @@ def _list(args: argparse.Namespace) -> int:
 
 
 SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "gamma_max", "continuation", "scheme", "signs",
-                 "selection_scale", "residual_tol", "accuracy", "max_nodes")
+                 "selection_scale", "residual_tol", "accuracy", "max_nodes", "certificate")
 """Options of `qdframe solve` passed to :func:`qdframe.solve` under their own names."""
 
 
@@ -185,10 +191,10 @@ def _solve(args: argparse.Namespace) -> int:
     direction = with_options(make_direction(args.direction), dict(args.option or ()))
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
-        from .descent import ACCURACY_START_NODES, DEFAULT_NODES
+        from .descent import ACCURACY_START_NODES, DEFAULT_ACCURACY
 
-        grid = (f"from {args.nodes or ACCURACY_START_NODES} points to accuracy {args.accuracy:g}" if args.accuracy
-                else f"on {args.nodes or DEFAULT_NODES} nodes")
+        grid = (f"on {args.nodes} nodes" if args.nodes and not args.accuracy else
+                f"from {args.nodes or ACCURACY_START_NODES} points to accuracy {args.accuracy or DEFAULT_ACCURACY:g}")
         print(f"solving {model.name} {grid} with {args.direction}, budget {args.max_iter} iterations …",
               end="", file=sys.stderr, flush=True)
     try:

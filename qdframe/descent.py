@@ -20,8 +20,11 @@ from .grid import Grid, make_scheme
 from .line_searches.base import LineSearch
 from .model import InclusionModel
 from .schemes import Scheme
+from .estimates import CERTIFICATES
 from .registry import lookup
 from .result import IterationRecord, SolveResult
+from .start import MODEL, Starts
+from .status import Status
 
 ProgressCallback = Callable[[IterationRecord], None]
 
@@ -85,6 +88,8 @@ def solve(
     estimate: bool = True,
     accuracy: float | None = None,
     max_nodes: int = 100_001,
+    certificate: str | None = None,
+    simulate_start: bool = True,
 ) -> SolveResult:
     """Find a trajectory of `model` by quasidifferential descent.
 
@@ -145,10 +150,25 @@ def solve(
         raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
     if isinstance(max_nodes, bool) or not isinstance(max_nodes, (int, np.integer)) or max_nodes < 3:
         raise InputError("max_nodes", "an integer ≥ 3", max_nodes)
+    if certificate not in (None, *CERTIFICATES):
+        raise InputError("certificate", " or ".join(f'"{name}"' for name in CERTIFICATES) + " (None: by the problem)",
+                         certificate)
+    refining = accuracy is not None or (nodes is None and mesh is None)  # else a fixed grid
+    if refining and not estimate:
+        raise InputError("estimate", "True when the mesh is refined to an accuracy (estimate=False needs nodes= or "
+                         "mesh= without accuracy=)", estimate)
+    target = DEFAULT_ACCURACY if accuracy is None else float(accuracy)
+    given_nodes = nodes
     if nodes is None:
-        nodes = ACCURACY_START_NODES if accuracy is not None else DEFAULT_NODES
-    scheme = (ACCURACY_SCHEME if accuracy is not None else model.default_scheme) if scheme is None else scheme
-    requested, scheme = scheme, (BOOTSTRAP_SCHEME if accuracy is not None else scheme)
+        nodes = ACCURACY_START_NODES if refining else DEFAULT_NODES
+    scheme = (ACCURACY_SCHEME if refining else model.default_scheme) if scheme is None else scheme
+    requested, scheme = scheme, (BOOTSTRAP_SCHEME if refining else scheme)
+    starts = Starts(model, simulate=simulate_start)
+    if refining and mesh is None and given_nodes is None:  # the first mesh: from the model's motion where it has one
+        mesh = starts.mesh(ACCURACY_START_NODES - 1)
+        if mesh is not None:  # the motion has the switches: no implicit-Euler bootstrap nor coarser grids to find them
+            scheme = requested
+            continuation = "none" if continuation is None else continuation
     final = Grid(model.T, nodes, scheme) if mesh is None else Grid.from_mesh(_mesh_times(mesh, model.T), scheme)
     nodes = final.nodes
     options = DescentOptions(
@@ -167,6 +187,7 @@ def solve(
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
     history, result = [], None
+    first_start = MODEL
     earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
     per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
     share = max(1, options.max_iter // (2 * len(grids)))  # a coarse grid's cap: the requested grid keeps ≥ half
@@ -182,13 +203,16 @@ def solve(
             budget = min(budget - 1, BAND_START_ITERATIONS)
         if budget <= 0 and not last:  # no iteration here: no result from this grid
             continue
-        start, from_stage = None, False
-        if earlier:  # the lowest here of the earlier iterates (the last one first on a tie) and the model's start
-            candidates = [_interpolate(functional, source) for source in earlier] + [functional.initial_point()]
+        label, own_start = starts.best(functional)  # the model's start or its simulated motion
+        start, from_stage = own_start, False
+        if earlier:  # the lowest here of the earlier iterates (the last one first on a tie) and the own start
+            candidates = [_interpolate(functional, source) for source in earlier] + [own_start]
             for number, candidate in enumerate(candidates):
                 value = functional.objective(candidate)
                 if number == 0 or value < lowest:
                     start, lowest, from_stage = candidate, value, number < len(earlier)
+        if not history:
+            first_start = label
         used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
 
         def shift(record: IterationRecord, used: int = used, elapsed: float = elapsed) -> IterationRecord:
@@ -215,13 +239,14 @@ def solve(
         result.message = (f"{reached}; the model's start is better than the iterate reached: returned unchanged"
                           + (f"; {unmet}" if unmet else ""))
     result.history = history
-    functional, result = _estimate(functional, result, solver, search, options, progress, estimate, accuracy, max_nodes,
-                                   requested)
+    functional, result = _certify(functional, result, solver, search, options, progress, estimate,
+                                  target if refining else None, target, certificate, max_nodes, requested, starts)
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     refined = result.options.pop("meshes", [])  # (nodes, iterations) of each mesh an accuracy request solved on
     grids, per_grid = grids + [count for count, _ in refined], per_grid + [used for _, used in refined]
-    result.options = {**result.options, "max_iter": options.max_iter, "grids": grids, "iterations_per_grid": per_grid,
+    result.options = {**result.options, "max_iter": options.max_iter, "start": first_start,
+                      "grids": grids, "iterations_per_grid": per_grid,
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale,
                       "uniform": functional.grid.uniform}
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
@@ -234,7 +259,8 @@ def solve(
     return result
 
 
-DEFAULT_NODES = 101  # `nodes` when not given
+DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
+DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`nodes` is required for one)
 ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
 ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
 BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
@@ -254,73 +280,80 @@ def _mesh_times(mesh: Sequence[float] | np.ndarray, T: float) -> np.ndarray:
     return tau
 
 
-def _estimate(functional: Functional, result: SolveResult, solver: DirectionSolver, search: LineSearch,
-              options: DescentOptions, progress: ProgressCallback | None, wanted: bool, accuracy: float | None,
-              max_nodes: int, scheme: str | Scheme) -> tuple[Functional, SolveResult]:
-    """The result with its switch times and error estimate; under `accuracy`, refined until
-    the estimate meets it (:mod:`qdframe.adaptive`). Every descent appends to the history.
-
-    Under `accuracy` the result comes from implicit Euler (BOOTSTRAP_SCHEME), which finds
-    sticking and sliding on coarse grids where higher-order collocation may not: its
-    switch times are settled first, then `scheme` takes over on that mesh."""
+def _certify(functional: Functional, result: SolveResult, solver: DirectionSolver, search: LineSearch,
+             options: DescentOptions, progress: ProgressCallback | None, wanted: bool, accuracy: float | None,
+             target: float, certificate: str | None, max_nodes: int,
+             scheme: str | Scheme, starts: Starts | None = None) -> tuple[Functional, SolveResult]:
+    """The result with its switch times, its error estimate and its status against the
+    target: under `accuracy`, refined until the estimate meets it (:func:`adaptive.to_accuracy`),
+    else on its fixed grid (:func:`adaptive.on_fixed_grid`). `solved` stays only where the
+    estimate is ≤ target·max(1, max|x|); a discrete solve whose estimate is larger, or that
+    has none, is `uncertified`. Every descent appends to the history."""
     history, meshes = result.history, []
     companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
 
-    def run(target: Functional, previous: SolveResult, own: bool) -> SolveResult:
-        """A descent on `target` from `previous` interpolated: the user's solver (`own`,
-        counted in the history) or gauss-newton for the estimate's bisected grid."""
+    def run(target_functional: Functional, previous: SolveResult, own: bool) -> SolveResult:
+        """A descent on `target_functional` from `previous` interpolated: the user's solver
+        (`own`, counted in the history) or gauss-newton for the estimate's bisected grid."""
         used = history[-1].iteration
         budget = max(options.max_iter - used, 0) if own else COMPANION_ITERATIONS
         stage = dataclasses.replace(options, max_iter=budget)
         shown = None if progress is None or not own else (
             lambda record: progress(dataclasses.replace(record, iteration=record.iteration + used)))
-        out = descend(target, solver if own else companion_solver, search if own else companion_search, stage, shown,
-                      _interpolate(target, previous))
+        start = _interpolate(target_functional, previous)
+        label, motion = starts.best(target_functional) if starts is not None else (MODEL, None)
+        if label != MODEL and target_functional.objective(motion) < target_functional.objective(start):
+            start = motion  # the model's motion sampled here is nearer than the last mesh's solution
+        out = descend(target_functional, solver if own else companion_solver, search if own else companion_search,
+                      stage, shown, start)
         if own:
-            meshes.append((target.grid.nodes, out.iterations))
+            meshes.append((target_functional.grid.nodes, out.iterations))
             elapsed = history[-1].time_s
             history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
                            for r in out.history)
         return out
 
-    note, found = "", adaptive.Estimate(None, None, None)
-    if accuracy is not None and result.status == "solved":
-        functional, result = adaptive.settle_switches(functional, result, lambda f, r: run(f, r, True))
-        if result.status == "solved" and make_scheme(scheme).name != functional.grid.scheme.name:
-            functional = adaptive.like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme))
-            result = run(functional, result, True)
-        while result.status == "solved":
-            functional, result = adaptive.settle_switches(functional, result, lambda f, r: run(f, r, True))
-            found = adaptive.estimate(functional, result, lambda f, r: run(f, r, False))
-            if found.value is None or found.value <= accuracy:
-                break
-            tau = adaptive.refine(functional.grid, found.local, accuracy, found.value)
-            tau = adaptive.pin(tau, switches.switch_times(functional, adaptive.iterate(functional, result)))  # kept on a point
-            finer = Grid.from_mesh(tau, functional.grid.scheme)
-            if finer.nodes > max_nodes:
-                note = f"accuracy {accuracy:.1e} not met: error estimate {found.value:.1e} with {functional.grid.nodes} " \
-                       f"nodes; the next mesh ({finer.nodes}) would pass max_nodes = {max_nodes}"
-                break
-            functional = adaptive.like(functional, finer)
-            result = run(functional, result, True)
-        if found.value is not None and found.value <= accuracy:
-            note = f"error estimate {found.value:.1e} ≤ accuracy {accuracy:.1e}"
-    elif wanted:
-        found = adaptive.estimate(functional, result, lambda f, r: run(f, r, False))
-    if found.companion is not None and found.value is None:
-        note = f"no error estimate: the solve on the bisected grid ({found.companion.nodes} nodes) ended " \
-               f"{found.companion.status}"
+    own, companion = (lambda f, r: run(f, r, True)), (lambda f, r: run(f, r, False))
+    if accuracy is not None:
+        outcome = adaptive.to_accuracy(functional, result, own, companion, accuracy, scheme, certificate, max_nodes)
+    else:
+        outcome = adaptive.on_fixed_grid(functional, result, companion, certificate, wanted)
+    functional, result, found = outcome.functional, outcome.result, outcome.estimate
     result.history = history
     result.error_estimate = found.value
-    result.switch_times = (switches.switch_times(functional, adaptive.iterate(functional, result))
-                           if result.status == "solved" else np.zeros(0))
+    result.certificate = found.certificate if found.value is not None else None
+    result.accuracy = target
+    solved = result.status == Status.SOLVED
+    result.switch_times = switches.switch_times(functional, adaptive.iterate(functional, result)) if solved \
+        else np.zeros(0)
+    note = outcome.note
+    if solved:
+        bound = adaptive.tolerance(target, result)
+        if found.value is None:
+            result.status = Status.UNCERTIFIED
+            reason = found.detail or "no error estimate"
+            note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error is not "
+                               f"certified: {reason}" + ("" if accuracy is not None else
+                                                         f"; more nodes, or accuracy={target:g}"))
+        elif found.value > bound:
+            result.status = Status.UNCERTIFIED
+            note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error estimate "
+                               f"{found.value:.1e} ({found.certificate}) exceeds the target {bound:.1e}"
+                         + ("" if accuracy is not None else f": more nodes, or accuracy={target:g}"))
+        else:
+            note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
+            if found.detail:
+                note = _join(note, found.detail)
     if accuracy is not None:
-        if result.status == "solved" and (found.value is None or found.value > accuracy):
-            result.status = "stationary"  # under accuracy, solved promises an estimate ≤ accuracy
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:
-        result.message = f"{result.message}; {note}" if result.message else note
+        result.message = _join(result.message, note)
     return functional, result
+
+
+def _join(*parts: str) -> str:
+    """The non-empty parts of a message, joined by "; "."""
+    return "; ".join(part for part in parts if part)
 
 
 COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected grid

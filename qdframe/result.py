@@ -67,7 +67,9 @@ class SolveResult:
     control_names: tuple[str, ...] = ()  # the model's names of the columns of u
     checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.certify
     binding_check: str = ""  # the check with the largest value/tol
-    error_estimate: float | None = None  # estimate of max_t |x(t) − x*(t)| (qdframe.adaptive); None: not solved
+    error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.estimates); None: none made
+    certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.estimates)
+    accuracy: float | None = None  # the target: solved promises error_estimate ≤ accuracy·max(1, max|x|)
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
 
     @property
@@ -91,7 +93,7 @@ class SolveResult:
             "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
         ]
         if self.error_estimate is not None:
-            lines.append(f"  error estimate {self.error_estimate:.2e}"
+            lines.append(f"  error estimate {self.error_estimate:.2e} ({self.certificate})"
                          + (f", switch times {', '.join(f'{t:.6g}' for t in self.switch_times)}" if len(self.switch_times) else ""))
         if self.solution_error is not None:
             lines.append(f"  error vs the known solution {self.solution_error:.2e}")
@@ -193,8 +195,11 @@ class SolveResult:
             if check is not None:
                 text += f"  (tol {check['tol']:.1e}{', binds' if name == self.binding_check else ''})"
             rows.append((labels[name], text))
+        bound = None if self.accuracy is None else self.accuracy * max(1.0, float(np.max(np.abs(self.x))))
+        how = {"bisection": "from the bisected mesh", "replay": "against the true motion its choices drive"}
         rows.append(("error estimate", "—" if self.error_estimate is None else
-                     f"{self.error_estimate:.3e}  (max |x − x*| over the points, from the bisected mesh)"))
+                     f"{self.error_estimate:.3e}  (max |x − x*| over the points, {how.get(self.certificate or '', '')})"
+                     + ("" if bound is None else f"; target {bound:.1e}")))
         if len(self.switch_times):
             rows.append(("switch times", ", ".join(f"{t:.10g}" for t in self.switch_times)))
         if self.solution_error is not None:

@@ -51,6 +51,10 @@ def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> 
     on = small & (np.abs(lam) < 1.0 - SATURATED)
     # 0 on the surface; ±1 off it, including a point with s = 0 and λ = ±1 (the switch point itself)
     side = np.where(on, 0, np.where(small, np.sign(lam), np.sign(s))).astype(int)
+    # a crossing that falls on a point (a mesh point pinned there): s = 0 and λ inside (−1, 1)
+    # at that point alone, between the two sides: one switch, not a stop and a break-away
+    alone = np.flatnonzero((side[1:-1] == 0) & (side[:-2] * side[2:] == -1)) + 1
+    side[alone] = side[alone - 1]
     changes = np.flatnonzero(side[1:] != side[:-1])  # between the points a and a + 1
     out = []
     for a in changes:

@@ -36,6 +36,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..filippov import FilippovError
 from ..model import InclusionModel
 
 EXACT, EVENTS, PROJECTION = "exact", "events replay", "projection replay"
@@ -92,23 +93,91 @@ def judge(
     if which == EVENTS:
         from .filippov import integrate, statement
 
-        between = velocity or (lambda values: _interpolated(t, values))
-        drive = inputs if inputs is not None else between(INPUTS[model.name](x, z, u, model))
-        system = statement(model, drive)
-        motion = integrate(system, x[0], float(t[-1]))
-        reference = motion(t)
-        miss = end_miss(model, reference)
-        error = float(np.max(np.abs(x - reference)))
+        best = None
+        for label, rule, breaks in ([("the peer's own input", None, ())] if inputs is not None
+                                    else continuations(t, velocity)):
+            drive = inputs if rule is None else _Drive(rule, INPUTS[model.name](x, z, u, model), breaks)
+            try:
+                reference = integrate(statement(model, drive), x[0], float(t[-1]))(t)
+            except FilippovError as exc:
+                if best is None and label == "linear":
+                    raise
+                last = exc
+                continue
+            miss = end_miss(model, reference)
+            error = float(np.max(np.abs(x - reference)))
+            if best is None or max(error, miss) < max(best[0], best[1]):
+                best = (error, miss, label)
+        if best is None:
+            raise last
+        error, miss, label = best
         recipe = ("the true Filippov motion from the trajectory's x(0) driven by "
-                  + ("the peer's own input" if inputs is not None else "the input recovered from the trajectory")
+                  + ("the peer's own input" if inputs is not None else
+                     f"the input recovered from the trajectory, continued between its points by {label}")
                   + ", DOP853 rtol = atol = 1e-12 with event location")
         return Judgement(max(error, miss), error, miss, _switch_error(model, switch_times), EVENTS, None,
                          time.perf_counter() - start, recipe)
     from .replay import replay
 
-    result = replay(model, t, x, z, u)
+    runs = [(label, replay(model, t, x, z, u, continuation=None if label == "linear" else rule))
+            for label, rule, _ in continuations(t, velocity)]
+    label, result = min(runs, key=lambda run: max(run[1].error, run[1].end_miss))
     return Judgement(max(result.error, result.end_miss), result.error, result.end_miss, _switch_error(model, switch_times),
-                     PROJECTION, result.uncertainty, time.perf_counter() - start, result.recipe)
+                     PROJECTION, result.uncertainty, time.perf_counter() - start,
+                     f"{result.recipe}; z and u continued between the points by {label}")
+
+
+Continuation = Callable[[np.ndarray, np.ndarray], np.ndarray]  # (values at t (N, k), times (M,)) -> (M, k)
+
+
+def continuations(t: np.ndarray, velocity=None) -> list[tuple[str, Continuation, tuple[float, ...]]]:
+    """The ways to continue a trajectory's velocities (and inputs) between its points t, each a
+    true motion's input when replayed; the judge takes the one whose motion is nearest (every one
+    is a genuine motion of the inclusion, so the nearest bounds the distance to the solution set):
+
+    - "the Radau IIA rule" where the points are a Radau IIA layout (a stage at a third of every
+      interval: qdframe's accuracy-refined trajectories), the polynomial through each interval's
+      stages (:meth:`~qdframe.schemes.base.Scheme.velocity`), jumps at the mesh points;
+    - "the implicit Euler rule": constant on (t_{k−1}, t_k] at the value of t_k, jumps at every point;
+    - "linear" interpolation through the points.
+
+    `velocity` (values ↦ function of time) replaces the first two: the caller's own rule.
+    """
+    from ..schemes import radau
+
+    t = np.asarray(t, dtype=float)
+    out: list[tuple[str, Continuation, tuple[float, ...]]] = []
+    linear: Continuation = lambda values, times: _linear(t, values, times)  # noqa: E731
+    if velocity is not None:
+        out.append(("the caller's rule", lambda values, times: np.stack(
+            [np.atleast_1d(velocity(values)(s)) for s in times]), tuple(t[1:-1])))
+        return out + [("linear", linear, ())]
+    mesh = np.arange(0, t.size, 2)
+    if t.size >= 3 and t.size % 2 == 1 and np.allclose(t[1::2], t[:-1:2] + np.diff(t[::2]) / 3.0, rtol=0.0,
+                                                       atol=1e-12 * max(1.0, abs(t[-1]))):
+        rule = radau.RadauIIA()
+        out.append(("the Radau IIA rule", lambda values, times: rule.velocity(t, mesh, values, times), tuple(t[2:-1:2])))
+    else:
+        def backward(values: np.ndarray, times: np.ndarray) -> np.ndarray:
+            return values[np.clip(np.searchsorted(t, times, side="left"), 0, t.size - 1)]
+
+        out.append(("the implicit Euler rule", backward, tuple(t[1:-1])))
+    return out + [("linear", linear, ())]
+
+
+def _linear(t: np.ndarray, values: np.ndarray, times: np.ndarray) -> np.ndarray:
+    values = np.asarray(values, dtype=float).reshape(t.size, -1)
+    return np.stack([np.interp(times, t, column) for column in values.T], axis=1)
+
+
+class _Drive:
+    """An input u(s) continued by a rule from its values at the points, with the rule's jumps as `breaks`."""
+
+    def __init__(self, rule: Continuation, values: np.ndarray, breaks: tuple[float, ...]) -> None:
+        self.rule, self.values, self.breaks = rule, np.atleast_2d(np.asarray(values, float).T).T, breaks
+
+    def __call__(self, s: float) -> np.ndarray:
+        return self.rule(self.values, np.array([s]))[0]
 
 
 def end_miss(model: InclusionModel, x: np.ndarray) -> float:

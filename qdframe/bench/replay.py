@@ -56,12 +56,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..functional import Functional
+from ..functional.nearest import nearest as _nearest, nearest_velocity  # noqa: F401  (nearest_velocity: re-exported)
 from ..grid import Grid
 from ..model import InclusionModel
 
-CHECK_ABOVE = 1e-10  # a moved point whose distance exceeded this is checked for the corner case
-FEASIBLE = 1e-13  # ... and moved again until h ≤ this (relative to 1 + |z|)
-CORNER_STEPS = 100
 
 
 @dataclass(frozen=True)
@@ -82,86 +80,14 @@ class Replay:
                 f"uncertainty={self.uncertainty:.1e}, seconds={self.seconds:.3g}; {self.recipe})")
 
 
-# ------------------------------------------------------------------ the projection
-def nearest_velocity(functional: Functional, xi: np.ndarray) -> np.ndarray:
-    """P_{F(y_k)}(z_k) for every row of ξ (N, 2n + m (+ p)), shape (N, n); resolved states
-    (z_i ≡ x_j) get x_j. See the module's docstring for the formula and the corner case."""
-    return _nearest(functional, np.asarray(xi, dtype=float))[0]
-
-
-def _nearest(functional: Functional, xi: np.ndarray, jacobian: bool = False):
-    """(P (N, n), ∂P/∂x (N, n, n) or None, corner count)."""
-    n = functional.n
-    _, z = functional.split(xi)
-    v = z.copy()
-    jac = np.zeros((xi.shape[0], n, n)) if jacobian else None
-    for i, j in functional.resolved.items():
-        if jac is not None:
-            jac[:, i, j] = 1.0
-    corners = 0
-    for block, sides in zip(functional.blocks, functional.distance_sides(xi)):
-        coords = list(sides.coords)
-        if sides.equation:  # F_b a single point: z_b − ℓ (ℓ signed, ψ = +1)
-            ell, grad, _ = sides.sides[0]
-            v[:, coords[0]] = z[:, coords[0]] - ell
-            if jac is not None:
-                jac[:, coords[0], :] = -grad[:, :n]
-            continue
-        step = np.zeros((xi.shape[0], len(coords)))
-        if len(sides.sides) == 2:  # an interval: ℓ+ = z − hi, ℓ− = lo − z
-            (lp, gp, pp), (lm, gm, pm) = sides.sides
-            empty = lp + lm > 0  # ℓ+ + ℓ− = lo − hi > 0: F_b is empty; take the middle (lo + hi)/2
-            wp = np.where(empty, 0.5, (lp > 0).astype(float))
-            wm = np.where(empty, 0.5, (lm > 0).astype(float))
-            step = np.where(empty[:, None], 0.5 * (lp[:, None] * pp + lm[:, None] * pm),
-                            np.maximum(lp, 0)[:, None] * pp + np.maximum(lm, 0)[:, None] * pm)
-            if jac is not None:
-                jac[:, coords, :] -= (wp[:, None, None] * pp[:, :, None] * gp[:, None, :n]
-                                      + wm[:, None, None] * pm[:, :, None] * gm[:, None, :n])
-        else:
-            for ell, grad, psi in sides.sides:
-                step += np.maximum(ell, 0.0)[:, None] * psi
-                if jac is not None:
-                    jac[:, coords, :] -= (ell > 0)[:, None, None] * psi[:, :, None] * grad[:, None, :n]
-        v[:, coords] = z[:, coords] - step
-        if block.size >= 2 and block.min_groups:
-            corners += _corner_repair(functional, xi, v, coords, sides)
-    return v, jac, corners
-
-
-def _corner_repair(functional: Functional, xi: np.ndarray, v: np.ndarray, coords: list[int], sides) -> int:
-    """Where the one-pass point of an intersection block left F, step again (in place)."""
-    h = sides.h
-    moved = np.flatnonzero(h > CHECK_ABOVE)
-    if moved.size == 0:
-        return 0
-    b = [k for k, blk in enumerate(functional.blocks) if list(blk.coords) == coords][0]
-    n = functional.n
-    sub = xi[moved].copy()
-    sub[:, n: 2 * n] = v[moved]  # z := the one-pass point (only this block's coordinates matter)
-    count = 0
-    for _ in range(CORNER_STEPS):
-        state = functional.distance_sides(sub)[b]
-        hh = state.h
-        bad = hh > FEASIBLE * (1.0 + np.abs(sub[:, [n + c for c in coords]]).max(axis=1))
-        if not bad.any():
-            break
-        count = max(count, int(bad.sum()))
-        ell, _, psi = state.sides[0]
-        shift = np.maximum(ell, 0.0)[:, None] * psi * bad[:, None]
-        for c_index, c in enumerate(coords):
-            sub[:, n + c] -= shift[:, c_index]
-    v[np.ix_(moved, coords)] = sub[:, [n + c for c in coords]]
-    return count
-
-
 # ------------------------------------------------------------------ the replay
 def replay(model: InclusionModel | str, t, x, z, u=None, *, min_substeps: int = 2000, tol: float = 1e-12,
            max_sweeps: int = 40, psi_samples: int = 32, target: float = 1e-9,
-           max_points: int = 400_001) -> Replay:
+           max_points: int = 400_001, continuation=None) -> Replay:
     """The replay of a solver's trajectory (t (N,), x and z (N, n), u (N, m) if the model has
     controls): x_ref at the solver's times, its error against x, its end miss and its own
-    uncertainty. See the module's docstring."""
+    uncertainty. See the module's docstring. `continuation(values, times)` continues z and u
+    between the points t (right-continuous where it jumps); default: linear."""
     start = time.perf_counter()
     if isinstance(model, str):
         from ..registry import lookup
@@ -187,11 +113,11 @@ def replay(model: InclusionModel | str, t, x, z, u=None, *, min_substeps: int = 
     x0 = np.where(np.isfinite(model.x0), model.x0, x[0])
 
     s = max(1, int(np.ceil(min_substeps / (N - 1))))
-    run = _Run(model, t, z, u, s, psi_samples)
+    run = _Run(model, t, z, u, s, psi_samples, continuation)
     X, sweeps, last, corners = run.solve(x0, run.start_from(x), tol, max_sweeps)
     history = [(s, sweeps)]
     while True:  # double the sub-steps until the replay at the solver's nodes moves by ≤ target
-        finer = _Run(model, t, z, u, 2 * s, psi_samples)
+        finer = _Run(model, t, z, u, 2 * s, psi_samples, continuation)
         X2, sweeps2, last2, corners2 = finer.solve(x0, finer.refine(X), tol, max_sweeps)
         history.append((2 * s, sweeps2))
         corners = max(corners, corners2)
@@ -227,7 +153,7 @@ class _Run:
     """The collocation problem on s sub-intervals per solver interval."""
 
     def __init__(self, model: InclusionModel, t: np.ndarray, z: np.ndarray, u: np.ndarray, s: int,
-                 psi_samples: int) -> None:
+                 psi_samples: int, continuation=None) -> None:
         self.s = s
         N = t.size
         # 2s + 1 points per solver interval: θ = j/(2s), the Lobatto points of the s sub-intervals
@@ -235,8 +161,18 @@ class _Run:
         self.tau = np.concatenate([(t[:-1, None] + theta[None, :] * np.diff(t)[:, None]).ravel(), t[-1:]])
         left = np.minimum(np.arange(self.tau.size) // (2 * s), N - 2)
         frac = np.concatenate([np.tile(theta, N - 1), [1.0]])[:, None]
-        self.z = z[left] + frac * (z[left + 1] - z[left])
-        self.u = u[left] + frac * (u[left + 1] - u[left])
+        if continuation is None:
+            self.z = z[left] + frac * (z[left + 1] - z[left])
+            self.u = u[left] + frac * (u[left + 1] - u[left])
+        else:  # right-continuous at its jumps; the left limits at the solver's points are kept apart
+            self.z = continuation(z, self.tau)
+            self.u = continuation(u, self.tau) if u.shape[1] else np.zeros((self.tau.size, 0))
+            ends = np.arange(2 * s, self.tau.size, 2 * s)  # the solver's points after the first
+            before = np.nextafter(self.tau[ends], -np.inf)
+            z_left = continuation(z, before)
+            u_left = continuation(u, before) if u.shape[1] else np.zeros((ends.size, 0))
+            jumps = np.any(z_left != self.z[ends], axis=1) | np.any(u_left != self.u[ends], axis=1)
+            self.jumps, self.z_left, self.u_left = ends[jumps], z_left[jumps], u_left[jumps]
         self.H = np.repeat(np.diff(t) / s, s)  # width of each sub-interval
         n = model.n_states
         self.n = n
@@ -245,6 +181,11 @@ class _Run:
         self.xi = np.zeros((self.tau.size, self.functional.dim))
         self.xi[:, n: 2 * n] = self.z
         self.xi[:, 2 * n: 2 * n + self.u.shape[1]] = self.u
+        if continuation is None:
+            self.jumps = np.zeros(0, dtype=int)
+        self.left = np.zeros((self.jumps.size, self.functional.dim))
+        if self.jumps.size:
+            self.left[:, n: 2 * n], self.left[:, 2 * n: 2 * n + self.u.shape[1]] = self.z_left, self.u_left
 
     def start_from(self, x: np.ndarray) -> np.ndarray:
         """The solver's x interpolated linearly onto the points."""
@@ -261,12 +202,21 @@ class _Run:
         return out
 
     def evaluate(self, X: np.ndarray):
+        """P (the right limits at the continuation's jumps), ∂P/∂x, corner count, and P with
+        the left limits at the jumps (each sub-interval's own end value)."""
         self.xi[:, : self.n] = X
-        return _nearest(self.functional, self.xi, jacobian=True)
+        g, jac, corners = _nearest(self.functional, self.xi, jacobian=True)
+        ends = g
+        if self.jumps.size:
+            self.left[:, : self.n] = X[self.jumps]
+            ends = g.copy()
+            ends[self.jumps] = _nearest(self.functional, self.left)[0]
+        return g, jac, corners, ends
 
-    def integrate(self, g: np.ndarray) -> np.ndarray:
-        """∫_{τ_0}^{τ_i} of the piecewise quadratic through the values g at every point."""
-        g0, g1, g2 = g[:-1:2], g[1::2], g[2::2]
+    def integrate(self, g: np.ndarray, ends: np.ndarray | None = None) -> np.ndarray:
+        """∫_{τ_0}^{τ_i} of the piecewise quadratic through the values g at every point (each
+        sub-interval's end value from `ends` where the integrand jumps there)."""
+        g0, g1, g2 = g[:-1:2], g[1::2], (g if ends is None else ends)[2::2]
         H = self.H[:, None]
         ends = np.cumsum(H * (g0 + 4 * g1 + g2) / 6, axis=0)
         out = np.zeros_like(g)
@@ -282,9 +232,9 @@ class _Run:
         eye = np.eye(self.n)
         corners, last, previous = 0, np.inf, np.inf
         for sweep in range(1, max_sweeps + 1):
-            g, jac, c = self.evaluate(X)
+            g, jac, c, ends = self.evaluate(X)
             corners = max(corners, c)
-            residual = x0 + self.integrate(g) - X
+            residual = x0 + self.integrate(g, ends) - X
             # δ' = J δ + R' by backward Euler: δ_{i+1} = A_i (δ_i + R_{i+1} − R_i), A_i = (I − Δ_i J_{i+1})^{-1}
             A = np.linalg.inv(eye - dt[:, None, None] * jac[1:])
             b = np.einsum("kij,kj->ki", A, np.diff(residual, axis=0))

@@ -1,0 +1,214 @@
+"""Error estimates of a solved trajectory: max over its points of |x(t_k) − x*(t_k)|.
+
+Two certificates, each for the problems it can judge (:func:`certificate_for`):
+
+**bisection** — where the problem has one solution. The same problem is solved again on
+the bisected mesh (every interval halved: :meth:`~qdframe.grid.Grid.bisected`), from the
+result interpolated, by gauss-newton. With x_h and x_{h/2} the two discrete solutions and
+p ≥ 1 the order, x_h − x* ≈ (x_h − x_{h/2})·2^p/(2^p − 1), a factor ≤ 2 for every p ≥ 1;
+the estimate takes 2.5 (p = 1 with a quarter's margin for the higher-order terms on
+coarse grids), plus what the two discrete solutions cannot see, the result's own defects:
+
+    2.5·max_k |x_h(t_k) − x_{h/2}(t_k)| + boundary error + consistency error
+        + T·(inclusion residual + max a·selection residual) + 8ε·max(1, |x|).
+
+The defects matter near the solver's tolerance: a trajectory that misses x_j(T) = xT_j by
+b is at least b from every solution there, and a velocity h outside F moves x by up to
+T·h over the horizon.
+
+**replay** — where the solutions form a set (a free input, a set-valued right-hand side)
+or the problem is an initial-value problem. The trajectory's own choices are replayed
+through the true dynamics: from its x(0), the Filippov motion x_ref of
+x' ∈ g + B·Sgn(s) (:func:`qdframe.filippov.model_system`), each set's velocity the point
+nearest to the trajectory's own choice, the controls the trajectory's u, all continued
+between the points by the scheme's own rule for x' (:meth:`~qdframe.schemes.Scheme.velocity`),
+integrated by DOP853 with event location (rtol = atol = 1e-11). x_ref is a true motion of
+the inclusion; the estimate is
+
+    max_k |x(t_k) − x_ref(t_k)| + how far x_ref misses the end, periodic and surface
+        conditions + 8ε·max(1, |x|).
+
+For an initial-value problem x_ref is the solution, so this is the true error itself.
+Where the solutions form a set, it bounds how far the trajectory is from a true motion
+and how far that motion is from meeting the conditions (the benchmark's yardstick).
+
+Each estimate also gives the local error per mesh interval (how far x − x_other moves
+within it), which :func:`qdframe.adaptive.refine` equidistributes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+
+from .functional import Functional
+from .grid import Grid
+from .result import SolveResult
+
+BISECTION, REPLAY = "bisection", "replay"
+CERTIFICATES = (BISECTION, REPLAY)
+ESTIMATE_FACTOR = 2.5  # 2^p/(2^p − 1) ≤ 2 for every order p ≥ 1, with a quarter's margin
+ROUNDING = 8 * np.finfo(float).eps  # relative: the estimate never claims less than rounding
+REPLAY_TOL = 1e-11  # DOP853's rtol and atol in the replay
+
+Resolve = Callable[[Functional, SolveResult], SolveResult]  # a descent on a functional from a result
+
+
+@dataclasses.dataclass
+class Estimate:
+    """An error estimate of one trajectory: its value (None: none could be made, `detail`
+    says why), the local error per mesh interval (K,), which certificate made it, and what
+    it compared with (the bisected solve, or the replayed motion at the points)."""
+
+    value: float | None
+    local: np.ndarray | None
+    certificate: str = ""
+    detail: str = ""
+    companion: SolveResult | None = None
+    reference: np.ndarray | None = None
+
+
+def solutions_form_a_set(functional: Functional) -> bool:
+    """Whether the model leaves a choice: controls, or a set that is not a point (an
+    interval, a ball, an intersection) outside its sign terms; a cost picks one solution."""
+    if functional.cost is not None:
+        return False
+    if functional.m:
+        return True
+    probe = np.zeros((1, functional.dim))
+    probe[0, : functional.n] = np.nan_to_num(functional.model.x0)
+    exact = functional if functional.signs == "exact" else like(functional, functional.grid, "exact")
+    return any(not sides.equation for sides in exact.distance_sides(probe))
+
+
+def initial_value_problem(functional: Functional) -> bool:
+    """x(0) wholly given and no end or periodic condition."""
+    return bool(np.all(functional.start_given) and functional.end.size == 0 and functional.periodic.size == 0)
+
+
+def certificate_for(functional: Functional) -> str:
+    """replay where the solutions form a set or the problem is an initial-value problem
+    (there it measures the true error), bisection where a boundary-value problem has one solution."""
+    return REPLAY if solutions_form_a_set(functional) or initial_value_problem(functional) else BISECTION
+
+
+def estimate(functional: Functional, result: SolveResult, resolve: Resolve, certificate: str | None = None) -> Estimate:
+    """The error estimate of a solved `result` on `functional`'s grid by `certificate`
+    (None: :func:`certificate_for`); an unsolved result has none. A replay of a problem
+    with one solution that the integrator cannot carry out falls back to bisection."""
+    if result.status != "solved":
+        return Estimate(None, None, detail=f"the result is {result.status}")
+    chosen = certificate or certificate_for(functional)
+    if chosen == REPLAY:
+        found = replay(functional, result)
+        if found.value is not None or solutions_form_a_set(functional) or certificate == REPLAY:
+            return found
+        fallback = bisection(functional, result, resolve)
+        fallback.detail = f"{found.detail}; by bisection instead" if fallback.value is not None else \
+            f"{found.detail}; {fallback.detail}"
+        return fallback
+    return bisection(functional, result, resolve)
+
+
+def bisection(functional: Functional, result: SolveResult, resolve: Resolve) -> Estimate:
+    """The estimate from a second solve on the bisected mesh (module docstring)."""
+    finer = like(functional, functional.grid.bisected())
+    companion = resolve(finer, result)
+    if companion.status != "solved":
+        return Estimate(None, None, BISECTION, f"the solve on the bisected grid ({companion.nodes} nodes) ended "
+                        f"{companion.status}", companion)
+    grid = functional.grid
+    difference = dense(finer.grid, companion.x, grid.t) - result.x  # (N, n)
+    value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + defects(functional, result)
+    return Estimate(value, _local(grid, difference, ESTIMATE_FACTOR), BISECTION, "", companion)
+
+
+def defects(functional: Functional, result: SolveResult) -> float:
+    """What a trajectory's own residuals can move it from a solution by (module docstring)."""
+    scale = max(1.0, float(np.max(np.abs(result.x))))
+    floor = result.boundary_error + result.consistency_error + ROUNDING * scale
+    velocity = result.inclusion_residual
+    if result.selection_residual is not None and functional.p:
+        velocity += selection_amplitude(functional, result) * result.selection_residual
+    return floor + functional.grid.T * velocity
+
+
+def selection_amplitude(functional: Functional, result: SolveResult) -> float:
+    """The largest |sense·a(y)| of a sign term along the trajectory: how far a selection's
+    error moves a velocity."""
+    y = result.x if result.u is None else np.concatenate([result.x, result.u], axis=1)
+    return max((float(np.max(np.abs(functional._amplitude_values(functional.blocks[b], term, y))))
+                for b, term in functional.sign_terms), default=0.0)
+
+
+def replay(functional: Functional, result: SolveResult) -> Estimate:
+    """The estimate from the true motion driven by the trajectory's own choices (module docstring)."""
+    from .filippov import FilippovError, integrate, model_system
+
+    exact = functional if functional.signs == "exact" else like(functional, functional.grid, "exact")
+    grid = exact.grid
+    xi = exact.pack(result.x, result.z, result.u, result.selections if functional.signs == "exact" else None)
+    y = exact.arguments(xi)
+    # the sets' choice: z without the sign terms' part B(y)·λ, the trajectory's own selections
+    lam = exact.selections(xi)
+    w = result.z.copy()
+    for (b, term), k in zip(exact.sign_terms, exact.sign_columns):
+        coord = exact.blocks[b].coords[0]
+        w[:, coord] -= term.sense * exact._amplitude_values(exact.blocks[b], term, y) * lam[:, k]
+    scheme, t, mesh = grid.scheme, grid.t, grid.mesh
+
+    def rule(values: np.ndarray) -> Callable[[float], np.ndarray]:
+        return lambda time: scheme.velocity(t, mesh, values, np.array([time]))[0]
+
+    controls = rule(result.u) if exact.m else None
+    inputs = exact.m or solutions_form_a_set(exact)  # a choice to continue between the points
+    try:
+        system = model_system(exact, controls, rule(w) if inputs else None,
+                              breaks=grid.mesh_times[1:-1] if inputs else ())
+        motion = integrate(system, result.x[0], grid.T, rtol=REPLAY_TOL, atol=REPLAY_TOL)
+    except (FilippovError, np.linalg.LinAlgError, ValueError) as exc:
+        return Estimate(None, None, REPLAY, f"no replay: {exc}")
+    reference = motion(t)
+    difference = result.x - reference
+    miss = exact.boundary_error(np.concatenate([reference, np.zeros_like(reference)], axis=1))
+    if exact.surface is not None:
+        miss += float(np.max(np.abs(exact.surface.function(reference)[0])))
+    scale = max(1.0, float(np.max(np.abs(result.x))))
+    value = float(np.max(np.abs(difference))) + miss + ROUNDING * scale
+    detail = f"the true motion from x(0) misses the conditions by {miss:.1e}" if miss else ""
+    return Estimate(value, _local(grid, difference, 1.0), REPLAY, detail, reference=reference)
+
+
+def _local(grid: Grid, difference: np.ndarray, factor: float) -> np.ndarray:
+    """The local error of mesh interval j: how far `difference` moves within it, from its first mesh point."""
+    interval = np.searchsorted(grid.mesh, np.arange(1, grid.nodes)) - 1  # the interval of each point p ≥ 1
+    start = grid.mesh[interval]  # base(p)
+    moved = np.max(np.abs(difference[1:] - difference[start]), axis=1)
+    local = np.zeros(grid.mesh.size - 1)
+    np.maximum.at(local, interval, factor * moved)
+    return local
+
+
+def dense(grid: Grid, values: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """`values` (at grid.t) at `times` by the scheme's interpolant: on each mesh interval the
+    polynomial through its points (linear for one-step schemes)."""
+    tau = grid.mesh_times
+    interval = np.clip(np.searchsorted(tau, times, side="right") - 1, 0, tau.size - 2)
+    stages = grid.scheme.stages
+    first = grid.mesh[interval]  # the interval's mesh point; its points are first … first + stages
+    out = np.zeros((times.size, values.shape[1]))
+    for i in range(stages + 1):  # Lagrange basis over the interval's stages + 1 points
+        basis = np.ones(times.size)
+        for j in range(stages + 1):
+            if j != i:
+                basis *= (times - grid.t[first + j]) / (grid.t[first + i] - grid.t[first + j])
+        out += basis[:, None] * values[first + i]
+    return out
+
+
+def like(functional: Functional, grid: Grid, signs: str | None = None) -> Functional:
+    """A functional of the same model and sign treatment (or `signs`) on `grid`."""
+    return Functional(functional.model, grid, signs=functional.signs if signs is None else signs,
+                      selection_scale=functional.selection_scale)

@@ -1,0 +1,193 @@
+"""The starting iterates a solve chooses from: the model's own, and the simulated motion.
+
+A friction model that a user writes has, by default, a constant start x ≡ x0, z ≡ 0; from
+there semismooth Newton has to find every stick, slip and crossing itself, and on a
+pendulum with pivot friction or a long stick-slip horizon it does not. Where the model
+leaves no choice (its sets are points apart from their sign terms, no controls), its true
+Filippov motion can be integrated (:mod:`qdframe.filippov`) and sampled on the grid:
+
+- x(0) wholly given: the motion from x0 (an initial-value problem: that motion is the
+  solution; with end conditions too, it is the start the conditions are then met from);
+- some x_i(0) free: shooting, the free values chosen by least squares so that the motion
+  meets the end and periodic conditions (scipy's least_squares, a few dozen motions).
+
+:class:`Starts` offers both on any grid; a solve takes, per grid, the one with the lower
+objective (the model's own where the model is better), and says which it took.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .filippov import FilippovError, FilippovTrajectory, integrate, model_system
+from .functional import Functional
+from .grid import Grid
+
+MODEL, SIMULATED = "model", "simulated"
+SHOOTING_EVALUATIONS = 40  # motions integrated at most while shooting for free x(0) values
+SIMULATION_TOL = 1e-10  # DOP853's rtol and atol for a start (the solve makes it exact)
+SIMULATION_SECONDS = 20.0  # a shooting search stops after this long, with what it has
+TURN_DENSITY = 16 / np.pi  # a first mesh from the motion: intervals per radian its velocity turns …
+MIN_PER_PIECE = 4  # … and at least this many per piece of constant mode
+TURN_SAMPLES = 257  # points per piece where the turning is measured
+
+
+class Starts:
+    """The starts of one solve of `model`: the model's own, and its simulated motion where it
+    has one (computed once, on first use, and sampled on every grid)."""
+
+    def __init__(self, model, simulate: bool = True) -> None:
+        self.model = model
+        self.simulate = simulate
+        self._motion: FilippovTrajectory | None = None
+        self._tried = False
+        self.note = ""  # why there is no simulated start
+
+    def candidates(self, functional: Functional) -> list[tuple[str, np.ndarray]]:
+        """(label, ξ) of each start on `functional`'s grid: the model's, then the simulated one."""
+        out = [(MODEL, functional.initial_point())]
+        motion = self.motion()
+        if motion is not None:
+            try:
+                out.append((SIMULATED, sample(functional, motion)))
+            except (FilippovError, np.linalg.LinAlgError, ValueError) as exc:
+                self.note = f"no simulated start: {exc}"
+        return out
+
+    def best(self, functional: Functional) -> tuple[str, np.ndarray]:
+        """The simulated start where there is one with a finite objective (it is the model's
+        true motion: on a coarse grid its discretization residual may exceed a hand-made
+        start's, but it has the solution's switches), else the model's."""
+        candidates = self.candidates(functional)
+        for label, xi in reversed(candidates):
+            if np.isfinite(functional.objective(xi)):
+                return label, xi
+        return candidates[0]
+
+    def motion(self) -> FilippovTrajectory | None:
+        """The simulated motion (None: the model leaves a choice, or the simulation failed)."""
+        if self.simulate and not self._tried:
+            self._tried = True
+            try:
+                self._motion = simulate(Functional(self.model, Grid(self.model.T, 2, "implicit-euler")))
+            except (FilippovError, np.linalg.LinAlgError, ValueError, OverflowError) as exc:
+                self.note = f"no simulated start: {exc}"
+        return self._motion
+
+    def mesh(self, intervals: int) -> np.ndarray | None:
+        """A first mesh for refinement from the motion (None without one): a point on every
+        mode change, and in each piece of constant mode TURN_DENSITY intervals per radian
+        that the motion's velocity turns (its states scaled to their ranges), at least
+        MIN_PER_PIECE, and at least `intervals` in all. A swing of a spring-mass is π: 16
+        intervals, where Radau IIA's discrete motion is near enough to the true one for
+        semismooth Newton from it (8 were not, on stick-slip-oscillator)."""
+        motion = self.motion()
+        if motion is None:
+            return None
+        T = self.model.T
+        edges = np.unique(np.concatenate([[0.0], np.asarray(motion.switch_times, dtype=float), [T]]))
+        edges = edges[(edges >= 0.0) & (edges <= T)]
+        fine = np.linspace(0.0, 1.0, TURN_SAMPLES)
+        samples = [motion(a + (b - a) * fine) for a, b in zip(edges[:-1], edges[1:])]
+        span = np.ptp(np.concatenate(samples), axis=0)
+        scale = np.where(span > 0, span, 1.0)
+        counts = np.array([max(MIN_PER_PIECE, int(np.ceil(TURN_DENSITY * _turning(x / scale)))) for x in samples])
+        counts = np.maximum(counts, np.ceil(counts * intervals / counts.sum()).astype(int))
+        return np.concatenate([np.linspace(a, b, k + 1)[:-1] for a, b, k in zip(edges[:-1], edges[1:], counts)] + [[T]])
+
+
+def _turning(x: np.ndarray) -> float:
+    """The angle (radians) through which the velocity of the sampled path x (K, n) turns."""
+    step = np.diff(x, axis=0)
+    length = np.linalg.norm(step, axis=1)
+    moving = step[length > 1e-12 * max(1.0, float(np.max(length, initial=0.0)))]
+    if moving.shape[0] < 2:
+        return 0.0
+    unit = moving / np.linalg.norm(moving, axis=1)[:, None]
+    return float(np.sum(np.arccos(np.clip(np.sum(unit[1:] * unit[:-1], axis=1), -1.0, 1.0))))
+
+
+def simulate(functional: Functional) -> FilippovTrajectory | None:
+    """The model's Filippov motion over [0, T] from x(0) (free values by shooting); None
+    where the model leaves a choice (controls, sets that are not points)."""
+    model = functional.model
+    exact = functional if functional.signs == "exact" else Functional(model, functional.grid, signs="exact")
+    if exact.m:
+        return None
+    try:
+        system = model_system(exact)
+    except FilippovError:  # a set that is not a point: the motion needs a choice
+        return None
+    given = exact.start_given
+    x0 = np.where(given, np.nan_to_num(model.x0), exact.initial_point()[0, : exact.n])
+    T = exact.grid.T
+    if given.all() or (exact.end.size == 0 and exact.periodic.size == 0):
+        return integrate(system, x0, T, SIMULATION_TOL, SIMULATION_TOL)
+    free = np.flatnonzero(~given)
+    clock = time.perf_counter()
+
+    def misses(values: np.ndarray) -> np.ndarray:
+        if time.perf_counter() - clock > SIMULATION_SECONDS:
+            raise _OutOfTime
+        start = x0.copy()
+        start[free] = values
+        end = integrate(system, start, T, SIMULATION_TOL, SIMULATION_TOL)(np.array([T]))[0]
+        return np.concatenate([end[exact.end] - model.end_values, end[exact.periodic] - start[exact.periodic]])
+
+    try:
+        found = least_squares(misses, x0[free], max_nfev=SHOOTING_EVALUATIONS, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        best = found.x
+    except _OutOfTime:
+        return None
+    start = x0.copy()
+    start[free] = best
+    return integrate(system, start, T, SIMULATION_TOL, SIMULATION_TOL)
+
+
+class _OutOfTime(Exception):
+    pass
+
+
+def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
+    """ξ on `functional`'s grid from a motion: x(t_k), z_k = its velocity g + B·λ in the mode
+    of t_k, λ_k that mode's selections (the equivalent control while sliding). The model is
+    evaluated at all nodes at once (:func:`qdframe.filippov.model_system` one point at a
+    time is only for the integrator); nodes are grouped by mode for the small solves."""
+    from .functional.nearest import nearest
+
+    t = functional.grid.t
+    x = motion(t)
+    exact = functional if functional.signs == "exact" else Functional(functional.model, functional.grid, signs="exact")
+    n, p = exact.n, exact.p
+    row = exact.pack(x, np.zeros_like(x), None, np.zeros((t.size, p)) if p else None)
+    if p:
+        row[:, 2 * n + exact.m:] = 0.0  # λ = 0: the sets without their sign terms
+    g = nearest(exact, row)[0]  # the sets are points: z is irrelevant
+    lam = np.zeros((t.size, p))
+    if p:
+        y = exact.arguments(row)
+        B = np.zeros((t.size, n, p))
+        for (b, term), k in zip(exact.sign_terms, exact.sign_columns):
+            B[:, exact.blocks[b].coords[0], k] += term.sense * exact._amplitude_values(exact.blocks[b], term, y)
+        ds = np.stack([exact._switch(exact.blocks[b], term, y)[1][:, :n] for b, term in exact.selection_terms], axis=1)
+        starts = np.array([start for start, _ in motion.modes])
+        which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(motion.modes) - 1)
+        for index in np.unique(which):
+            nodes = np.flatnonzero(which == index)
+            mode = np.array(motion.modes[index][1], dtype=float)
+            lam[nodes] = mode
+            sliding = np.flatnonzero(mode == 0)
+            if sliding.size:
+                base = g[nodes] + np.einsum("nij,j->ni", B[nodes], mode)
+                grads = ds[nodes][:, sliding, :]  # (K, S, n)
+                matrix = grads @ B[nodes][:, :, sliding]  # (K, S, S)
+                rhs = -np.einsum("ksn,kn->ks", grads, base)[..., None]
+                lam[np.ix_(nodes, sliding)] = np.clip(np.linalg.solve(matrix, rhs)[..., 0], -1.0, 1.0)
+        z = g + np.einsum("nij,nj->ni", B, lam)
+    else:
+        z = g
+    return functional.pack(x, z, None, lam if functional.p else None)
+
