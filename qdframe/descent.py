@@ -344,6 +344,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
             note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
             if found.detail:
                 note = _join(note, found.detail)
+    result.options = {**result.options, "estimate_time_s": outcome.seconds}
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:

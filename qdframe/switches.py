@@ -29,8 +29,11 @@ ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (
 SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime
 
 
-def switch_times(functional: Functional, xi: np.ndarray) -> np.ndarray:
-    """The located switch times of the iterate ξ, increasing (empty without sign terms)."""
+def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True) -> np.ndarray:
+    """The located switch times of the iterate ξ, increasing (empty without sign terms);
+    `crossings=False` leaves out the transversal crossings of a surface (s changes sign,
+    λ jumps from one end of [−1, 1] to the other), keeping the stops, sticks, break-aways
+    and the entries into and exits from sliding."""
     if not functional.p:
         return np.zeros(0)
     grid = functional.grid
@@ -38,11 +41,11 @@ def switch_times(functional: Functional, xi: np.ndarray) -> np.ndarray:
     found: list[float] = []
     for k, (b, term) in enumerate(functional.selection_terms):
         s = functional._switch(functional.blocks[b], term, y)[0]
-        found += _locate(grid.t, grid.mesh, s, lam[:, k])
+        found += [time for time, crossing in _locate(grid.t, grid.mesh, s, lam[:, k]) if crossings or not crossing]
     return np.unique(np.round(np.asarray(found, dtype=float), 14))
 
 
-def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> list[float]:
+def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> list[tuple[float, bool]]:
     """The switch times of one sign term from its s and λ at the points t (mesh: the
     indices of the mesh points). A change between the points a and a + 1 lies in the mesh
     interval [t_first, t_last] around them; the polynomials use only points outside it,
@@ -79,7 +82,7 @@ def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> 
         else:  # the same regime at both ends: the change is inside the interval (a stage point)
             root = None
         if root is not None:
-            out.append(root)
+            out.append((root, before != 0 and after != 0 and before != after))
     return out
 
 

@@ -48,13 +48,14 @@ from .bvp_peer import BVP_MODELS, run_solve_bvp
 from .peers import PEER_MODELS, run_nosnoc
 from .references import judge
 
-FORMAT = "qdframe-bench-run/2"
+FORMAT = "qdframe-bench-run/3"
 KEY_FIELDS = ("model", "direction", "line_search", "knob")
 FIELDS = (
     "model", "solver", "direction", "line_search", "knob", "nodes", "status", "found", "iterations", "wall_time_s",
     "setup_time_s", "error", "end_error", "switch_error", "reference_kind", "reference_uncertainty",
     "reference_time_s", "claim_tol", "claim", "objective", "I", "boundary_error", "inclusion_residual",
-    "consistency_error", "surface_error", "residual_error", "error_estimate", "max_iter", "time_limit_s",
+    "consistency_error", "surface_error", "residual_error", "error_estimate", "certificate", "estimate_time_s",
+    "max_iter", "time_limit_s",
     "machine", "load_average", "started_at", "message",
 )
 PAPER_MODELS = ("paper-7.1", "paper-7.2", "paper-7.3")
@@ -69,6 +70,7 @@ DIRECTION_PREFERENCE = ("gauss-newton", "native", "qpsolvers:daqp", "clarabel", 
 RESIDUAL_TOL = 5e-3  # the paper's accuracy (boundary error ≤ 5e-3, Section 7)
 CLAIM_TOL = RESIDUAL_TOL  # a run that reports success promises error ≤ this (an accuracy= run: its target)
 ACCURACY_DIRECTION = "gauss-newton"  # accuracy= runs: the default direction, a line of their own
+DEFAULT_MAX_ITER = 500  # the default call's row: solve()'s own budget
 
 
 class MissingDependency(QdframeError):
@@ -126,9 +128,12 @@ class Case:
     peer: str | None = None
     accuracy: float | None = None
     tol: float | None = None
+    default: bool = False  # qdframe.solve(model) as a user calls it (its default target, 1e-6)
 
     @property
     def knob(self) -> str:
+        if self.default:
+            return "default"
         if self.accuracy is not None:
             return f"accuracy={self.accuracy:g}"
         if self.tol is not None:
@@ -141,6 +146,8 @@ class Case:
         if self.peer == "solve_bvp":
             return "solve_bvp"
         label = f"{self.direction} / {self.line_search}"
+        if self.default:
+            return "qdframe.solve(model)"
         return label + " (accuracy=)" if self.accuracy is not None else label
 
     @property
@@ -276,6 +283,7 @@ def plan(
                 search = _default_line_search(direction)
                 cases += [Case(model, direction, search, None, max_iter, time_limit_s, accuracy=float(e))
                           for e in targets]
+                cases.append(Case(model, direction, search, None, DEFAULT_MAX_ITER, time_limit_s, default=True))
     if peers:
         for model in models:
             if model in PEER_MODELS["nosnoc"]:
@@ -403,8 +411,13 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
     model = resolve_model(case.model)
     solver = make_direction(case.direction)
     timed = _Deadline(solver, case.time_limit_s) if case.time_limit_s else solver
-    result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search),
-                   estimate=case.accuracy is not None, accuracy=case.accuracy, max_iter=case.max_iter)
+    if case.default:
+        result = solve(model, direction=timed, max_iter=case.max_iter)
+    else:
+        result = solve(model, nodes=case.nodes, direction=timed, line_search=make_line_search(case.line_search),
+                       accuracy=case.accuracy, max_iter=case.max_iter)
+    # a `solved` result promises its own target: accuracy·max(1, max|x|)
+    row["claim_tol"] = result.accuracy * max(1.0, float(np.max(np.abs(result.x))))
     status, message = result.status, result.message
     if isinstance(timed, _Deadline) and timed.expired:
         status = "time_limit"
@@ -412,7 +425,8 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
     row.update(status=status, message=message, iterations=result.iterations, wall_time_s=result.wall_time_s,
                nodes=result.nodes, objective=result.objective, I=result.I, boundary_error=result.boundary_error,
                inclusion_residual=result.inclusion_residual, consistency_error=result.consistency_error,
-               surface_error=result.surface_error, error_estimate=result.error_estimate)
+               surface_error=result.surface_error, error_estimate=result.error_estimate,
+               estimate_time_s=result.options.get("estimate_time_s"), certificate=result.certificate)
     for record in result.history:
         for name in history:
             history[name].append(getattr(record, name))

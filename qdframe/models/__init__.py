@@ -6,6 +6,8 @@
   read; tests check it against the hand-written ones, which the registry serves);
 - ``friction.py``: Filippov problems with exact solutions (``block-stop-stick``, …);
 - ``planar_friction.py``: friction in the plane, in the set language (``orthotropic-puck``);
+- ``user_friction.py``: friction models as users bring them (a pendulum with pivot friction, a
+  two-block chain, a relay oscillator), with reference motions from their hand-written equations;
 - ``bounded_input.py``: problems with a bounded input that the nosnoc peer states too
   (``coulomb-rest-to-rest``, ``sliding-mode-terminal``).
 """
