@@ -20,7 +20,7 @@ from .grid import Grid, make_scheme
 from .line_searches.base import LineSearch
 from .model import InclusionModel
 from .schemes import Scheme
-from .registry import lookup
+from .registry import lookup, plugin_code
 from .result import IterationRecord, SolveResult
 
 ProgressCallback = Callable[[IterationRecord], None]
@@ -47,8 +47,11 @@ class DescentOptions:
 
 
 def load_model(name: str, **overrides) -> InclusionModel:
-    """A registered model by name; `overrides` are T, x0, end_values."""
-    return lookup("models", name).obj(**overrides)
+    """A registered model by name; `overrides` are T, x0, end_values. An exception of the
+    model's own code (its `__init__`, `sets()`, …) is a PluginCodeError naming it."""
+    entry = lookup("models", name)
+    with plugin_code(entry.obj, "__init__"):
+        return entry.obj(**overrides)
 
 
 def make_direction(direction: str | DirectionSolver) -> DirectionSolver:
@@ -602,7 +605,8 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         diagnosis = unmet_conditions(functional, xi, options.residual_tol)
         message += f"; {diagnosis}" if diagnosis else ""
     x, z = functional.split(xi)
-    exact = model.exact_solution(functional.grid.t)
+    with plugin_code(model, "exact_solution()"):
+        exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
     bounds = [
         None if b is None else {"coordinate": block.coords[0], "lower": b[0], "upper": b[1]}

@@ -9,6 +9,7 @@ import sympy as sp
 
 from ..errors import InputError
 from ..model import Cost, InclusionModel, SetBlock, Surface
+from ..registry import plugin_code
 from .compiler import Compiled, compile_sets
 
 
@@ -79,11 +80,14 @@ class SetModel(InclusionModel):
         if cached is None:
             states, controls = cls.symbols()
             args = states + controls
-            cached = compile_sets(
-                self.sets(*args), states, controls,
-                surface=self.surface_equations(*args), cost=self.running_cost(*args),
-                weight=float(cls.penalty), model=cls.name or cls.__name__,
-            )
+            with plugin_code(self, "sets()"):
+                sets = self.sets(*args)
+            with plugin_code(self, "surface_equations()"):
+                surface = self.surface_equations(*args)
+            with plugin_code(self, "running_cost()"):
+                cost = self.running_cost(*args)
+            cached = compile_sets(sets, states, controls, surface=surface, cost=cost,
+                                  weight=float(cls.penalty), model=cls.name or cls.__name__)
             cls._compiled_sets = cached  # type: ignore[attr-defined]
         return cached
 
