@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import QdframeError
 from .functional import DistanceSides, Functional
 from .model import SetBlock
 
@@ -68,7 +69,10 @@ def unmet_conditions(functional: Functional, xi: np.ndarray, gap_tol: float = GA
             continue
         if dynamics >= SHARE * total:
             texts[number] += ", only by violating the dynamics"
-        bound = reach_bound(functional, xi, clause.index)
+        try:
+            bound = reach_bound(functional, xi, clause.index)
+        except (QdframeError, ArithmeticError, ValueError):  # the test failed (the model NaN in a simulation, …): no claim
+            bound = None
         if bound is not None:
             texts[number] += f"; it may lie outside the reachable set ({bound})"
     return "; ".join(texts)
@@ -107,7 +111,9 @@ def reach_bound(functional: Functional, xi: np.ndarray, j: int) -> str | None:
         return None
     block = next(block for block in functional.blocks if j in block.coords)
     x = functional.arguments(xi)
-    known = np.vstack([x, model.x0[None, :]])
+    known = np.vstack([x, np.where(np.isfinite(model.x0), model.x0, x[0])[None, :]])  # a free x_i(0): the iterate's
+    if not np.all(np.isfinite(known)):
+        return None
     lo, hi = known.min(axis=0), known.max(axis=0)
     for i, value in zip(functional.end, model.end_values):
         lo[i], hi[i] = min(lo[i], value), max(hi[i], value)

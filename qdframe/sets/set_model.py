@@ -13,6 +13,10 @@ from ..registry import plugin_code
 from .compiler import Compiled, compile_sets
 
 
+NUMERIC_ON_SYMBOL = ("loop of ufunc does not support argument", "Cannot convert expression to float")
+"""What NumPy's ufuncs and the math module say when given a SymPy symbol (np.sin(θ), math.exp(θ))."""
+
+
 def _names(value: Any) -> tuple[str, ...]:
     return tuple(value.replace(",", " ").split()) if isinstance(value, str) else tuple(value)
 
@@ -81,7 +85,15 @@ class SetModel(InclusionModel):
             states, controls = cls.symbols()
             args = states + controls
             with plugin_code(self, "sets()"):
-                sets = self.sets(*args)
+                try:
+                    sets = self.sets(*args)
+                except TypeError as exc:  # np.sin(θ), math.exp(θ): functions of numbers, given a SymPy symbol
+                    if not any(text in str(exc) for text in NUMERIC_ON_SYMBOL):
+                        raise
+                    raise InputError(f"{cls.__name__}.sets()", "formulas of SymPy functions of the symbols "
+                                     "(from sympy import sin, cos, exp; Abs, Min, Max, sqrt from qdframe.sets): "
+                                     "NumPy's and math's functions take numbers, not symbols",
+                                     f"{type(exc).__name__}: {exc}") from exc
             with plugin_code(self, "surface_equations()"):
                 surface = self.surface_equations(*args)
             with plugin_code(self, "running_cost()"):
