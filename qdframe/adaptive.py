@@ -111,7 +111,7 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
         if found.value <= target:
             break
         tau = refine(functional.grid, found.local, target, found.value)  # type: ignore[arg-type]
-        tau = pin(tau, switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS))  # kept on a point
+        tau = pin(tau, switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False))  # kept on a point
         finer = Grid.from_mesh(tau, functional.grid.scheme)
         if finer.nodes > max_nodes:
             note = f"the next mesh ({finer.nodes} points) would pass max_nodes = {max_nodes}"
@@ -150,7 +150,7 @@ def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def settle_switches(functional: Functional, result: SolveResult, resolve: Resolve) -> tuple[Functional, SolveResult]:
     """Move mesh points onto the switch times and re-solve until the times settle."""
-    times = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS)
+    times = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
     for _ in range(SWITCH_ROUNDS):
         if times.size == 0 or result.status != "solved":
             break
@@ -159,7 +159,7 @@ def settle_switches(functional: Functional, result: SolveResult, resolve: Resolv
             break
         functional = like(functional, Grid.from_mesh(tau, functional.grid.scheme))
         result = resolve(functional, result)
-        moved = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS)
+        moved = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
         settled = moved.size == times.size and np.max(np.abs(moved - times)) <= SWITCH_SETTLED * functional.grid.T
         times = moved
         if settled:

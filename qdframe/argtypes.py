@@ -131,3 +131,16 @@ def writable(field: str, path: str) -> None:
         raise InputError(field, "a file path in an existing, writable directory", path) from None
     if not existed:
         target.unlink(missing_ok=True)
+
+
+def figure_format(field: str, path: str) -> str:
+    """The figure format of `path` from its suffix, one matplotlib can write (png, pdf, svg, …);
+    an InputError naming the formats otherwise. Returns the format."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in formats:
+        listing = ", ".join(f".{name}" for name in sorted(formats))
+        raise InputError(field, f"a file name ending in a figure format matplotlib writes ({listing})", path)
+    return suffix

@@ -1,7 +1,9 @@
 """The `qdframe` command (README, "The command line"): `list`, `solve` and `simulate`.
 
-Bad input ends with one line naming the field and the expected form: exit status 2
-for usage errors, 1 for failures, and a traceback only with --debug.
+Bad input ends with one line naming the field and the expected form (exit status 2),
+an error that stops a run without a result with one line too (exit status 1), and
+`solve` exits with the code of its result's status (:data:`qdframe.status.EXIT_CODES`).
+--debug adds the traceback and keeps the exit status.
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import traceback
 import warnings
 from pathlib import Path
 
@@ -16,13 +19,14 @@ import numpy as np
 
 from . import __version__
 from .argtypes import (
-    boundary_vector, continuation, finite_float, integer, key_value, names, node_counts, positive_float, vector,
-    writable,
+    boundary_vector, continuation, figure_format, finite_float, integer, key_value, names, node_counts, positive_float,
+    vector, writable,
 )
 from .authoring.check import add_check_parser, main_check
 from .bench.cli import add_bench_parser, main_bench
 from .errors import InputError, QdframeError
-from .registry import GROUPS, KIND_LABEL, PluginWarning, available
+from .registry import GROUPS, KIND_LABEL, PluginWarning, available, lookup
+from .status import EXIT_CODES, EXIT_ERROR, EXIT_USAGE, Status
 
 
 class _UsageError(Exception):
@@ -44,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     lister = commands.add_parser("list", help="registered models, schemes, directions and line searches")
     lister.add_argument("--json", nargs="?", const="-", metavar="FILE", help="write JSON (to stdout without FILE)")
 
-    solve = commands.add_parser("solve", help="solve a model by quasidifferential descent")
+    solve = commands.add_parser("solve", help="solve a model by quasidifferential descent", epilog=_exit_codes(),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     solve.add_argument("model", help="model name (see `qdframe list`)")
     solve.add_argument("--direction", default="gauss-newton",
                        help="direction solver (default: gauss-newton; the paper's method: native)")
@@ -56,8 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "--nodes: the mesh is refined to --accuracy from 21 points; with --accuracy: the first mesh)")
     solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
     solve.add_argument("--continuation", type=continuation, metavar="auto|none|N,N,..",
-                       help="coarser grids to solve on first, e.g. 11,101; auto: 11, 101, ... below N "
-                            "(default: the direction's: auto for the paper's method, none for gauss-newton)")
+                       help="coarser grids to solve on first, e.g. 11,101; auto: the direction's ladder below N "
+                            "(gauss-newton 101, 301, 1001, 3001, ...; the paper's method 11, 101, 1001, ...); "
+                            "none: N alone (default: auto)")
     solve.add_argument("--tol", type=positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
     solve.add_argument("--delta", type=positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
     solve.add_argument("--eps", type=positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
@@ -105,6 +111,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+EXIT_MEANINGS = {
+    Status.SOLVED: "solved: certified pointwise",
+    Status.UNCERTIFIED: "uncertified: the discrete problem solved, its error not certified within the target",
+    Status.STATIONARY: "stationary: the descent stopped short of I = 0 (the message says where I sits)",
+    Status.MAX_ITER: "max_iter: the iteration budget ran out",
+    Status.FAILED: "failed: a backend reported an error mid-run",
+}
+
+
+def _exit_codes() -> str:
+    """The epilog of `qdframe solve --help`: its exit status for each way a run ends."""
+    lines = ["exit status:"]
+    for status, code in sorted(EXIT_CODES.items(), key=lambda item: item[1]):
+        lines.append(f"  {code}  {EXIT_MEANINGS[status]}")
+        if status is Status.SOLVED:
+            lines.append(f"  {EXIT_ERROR}  an error stopped the run without a result (e.g. the model returned NaN)")
+            lines.append(f"  {EXIT_USAGE}  bad input: one line names the field and the expected form")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv  # a global option, accepted anywhere on the line
@@ -135,18 +161,25 @@ def _main(argv: list[str], debug: bool) -> int:
             return main_check(args)
         return _solve(args)
     except _UsageError as exc:
-        print(exc, file=sys.stderr)
-        return 2
+        return _error(str(exc), EXIT_USAGE, debug)
     except InputError as exc:
-        if debug:
-            raise
-        print(f"qdframe: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(f"qdframe: error: {exc}", EXIT_USAGE, debug)
     except QdframeError as exc:
-        if debug:
-            raise
-        print(f"qdframe: error: {exc}", file=sys.stderr)
-        return 1
+        return _error(f"qdframe: error: {exc}", EXIT_ERROR, debug)
+    except Exception as exc:  # not raised on purpose: one line all the same, the traceback with --debug
+        frames = traceback.extract_tb(exc.__traceback__)
+        where = f" at {frames[-1].filename}:{frames[-1].lineno}" if frames else ""
+        text = " ".join(str(exc).split())
+        return _error(f"qdframe: error: unexpected {type(exc).__name__}{': ' + text if text else ''}{where} "
+                      "(--debug shows the traceback; please report it)", EXIT_ERROR, debug)
+
+
+def _error(line: str, code: int, debug: bool) -> int:
+    """Print the one error line (after the traceback with --debug) and return the exit status."""
+    if debug:
+        traceback.print_exc(file=sys.stderr)
+    print(line, file=sys.stderr)
+    return code
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -183,12 +216,17 @@ def _solve(args: argparse.Namespace) -> int:
     from .directions.base import with_options
 
     to_stdout = args.json == "-"  # the JSON alone on stdout; the summary goes to stderr
+    if args.plot:  # before the solve: a format matplotlib cannot write would fail after it
+        figure_format("--plot", args.plot)
     for flag in ("json", "plot"):
         if getattr(args, flag) and not (flag == "json" and to_stdout):
             writable(f"--{flag}", getattr(args, flag))
     overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic}
     model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
     direction = with_options(make_direction(args.direction), dict(args.option or ()))
+    for kind, name in (("line_searches", args.line_search), ("schemes", args.scheme)):
+        if name is not None:  # a misspelled name: before the model's start is built
+            lookup(kind, name)
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
         from .descent import ACCURACY_START_NODES, DEFAULT_ACCURACY
@@ -217,7 +255,7 @@ def _solve(args: argparse.Namespace) -> int:
         raise QdframeError(f"could not write the output: {exc}") from None
     if not args.quiet:
         print(result.summary(), file=sys.stderr if to_stdout else sys.stdout)
-    return 1 if result.status == "failed" else 0
+    return EXIT_CODES[Status(result.status)]
 
 
 def _simulate(args: argparse.Namespace) -> int:

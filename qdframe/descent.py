@@ -21,7 +21,7 @@ from .line_searches.base import LineSearch
 from .model import InclusionModel
 from .schemes import Scheme
 from .estimates import CERTIFICATES
-from .registry import lookup
+from .registry import lookup, plugin_code
 from .result import IterationRecord, SolveResult
 from .start import MODEL, Starts
 from .status import Status
@@ -50,8 +50,11 @@ class DescentOptions:
 
 
 def load_model(name: str, **overrides) -> InclusionModel:
-    """A registered model by name; `overrides` are T, x0, end_values."""
-    return lookup("models", name).obj(**overrides)
+    """A registered model by name; `overrides` are T, x0, end_values. An exception of the
+    model's own code (its `__init__`, `sets()`, …) is a PluginCodeError naming it."""
+    entry = lookup("models", name)
+    with plugin_code(entry.obj, "__init__"):
+        return entry.obj(**overrides)
 
 
 def make_direction(direction: str | DirectionSolver) -> DirectionSolver:
@@ -458,6 +461,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     weights = functional.weights
     rejected, rejected_label = 0, ""  # trial points where the model was NaN/inf, and the last piece named
     stalled: _Trial | None = None
+    flooded: tuple[int, np.ndarray, ModelOutputError] | None = None  # the trial point that reached REJECTED_LIMIT
     uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
     try:
         for iteration in range(1, options.max_iter + 2):
@@ -512,6 +516,9 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                     break
                 status, message = "stationary", "no step along the direction decreases the objective"
                 break
+            if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
+                flooded = (iteration, xi + bad[-1].gamma * step, bad[-1].error)
+                break
             xi = xi + gamma * step
             terms = functional.terms(xi)
             record = IterationRecord(
@@ -537,6 +544,12 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
         raise _located(functional, xi, stalled.error, f"the iterate after {len(history) - 1} iterations",
                        f"a step of {move:.1e} from it along the direction is non-finite and no step decreases "
                        "the objective: the descent cannot continue") from stalled.error
+    if flooded is not None:
+        iteration, trial, error = flooded
+        raise _located(functional, trial, error, f"a line-search trial point of iteration {iteration}",
+                       f"{rejected} trial points rejected where the model is non-finite (the limit is {REJECTED_LIMIT}): "
+                       "the descent keeps stepping where the model is not defined; make it finite there, or keep "
+                       "the states away from it (in the sets, or by the start)") from error
     if rejected and status != "solved":
         message += (f"; {rejected} line-search trial point(s) rejected where the model is non-finite"
                     + (f" (last: {rejected_label})" if rejected_label else ""))
@@ -561,6 +574,12 @@ class _Trial:
 CERTIFY_WINDOW = 40
 CERTIFY_SHRINK = 4.0
 NEAR_ITERATE = 1e-6  # a trial that moves ξ by at most this (relative, max-norm) is next to the iterate
+# line-search trial points where the model is NaN/inf that a descent rejects before it stops with the
+# last one's piece, node, t and state: a few are a line search overshooting into a region the model
+# leaves undefined; thousands (gauss-newton on a model NaN past x = 0.9 rejected ~24 per iteration
+# for 500 iterations: 12013) are a descent that keeps heading there. Measured on tests/test_first_hour_api.py's
+# NaN models: a descent blocked next to the NaN region (the error naming the iterate) had rejected 252–375
+REJECTED_LIMIT = 500
 START_ROUNDING = 1e-9  # a direction's move of a given x(t_0), relative to max(1, ‖G‖∞), that is rounding
 
 
@@ -636,7 +655,8 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         diagnosis = unmet_conditions(functional, xi, options.residual_tol)
         message += f"; {diagnosis}" if diagnosis else ""
     x, z = functional.split(xi)
-    exact = model.exact_solution(functional.grid.t)
+    with plugin_code(model, "exact_solution()"):
+        exact = model.exact_solution(functional.grid.t)
     solution_error = None if exact is None else float(np.max(np.abs(x - exact)))
     bounds = [
         None if b is None else {"coordinate": block.coords[0], "lower": b[0], "upper": b[1]}

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import QdframeError
 from .functional import DistanceSides, Functional
 from .model import SetBlock
 
@@ -28,6 +29,7 @@ class Clause:
     text: str
     kind: str  # "inclusion" (φ), "end", "periodic" (χ), "surface" (ω), "consistency" (υ), "selection" (σ)
     gap: float = 0.0  # end and periodic conditions: |x_j(T) − target|, read from x
+    index: int = -1  # end conditions: the coordinate j
 
 
 def unmet_conditions(functional: Functional, xi: np.ndarray, gap_tol: float = GAP_TOL) -> str:
@@ -41,11 +43,15 @@ def unmet_conditions(functional: Functional, xi: np.ndarray, gap_tol: float = GA
     place: a target outside the reachable set puts most of I on the dynamics the iterate
     breaks to approach it (φ, υ, σ), little on χ itself.
 
-    An end condition gives its target, the value x_j at the last node and the gap between
-    them; this is the compromise's value, so where the dynamics carry a share of I it says
-    that the value is reached "only by violating the dynamics" (the nearest value the
-    inclusion itself reaches may be farther). A pointwise condition gives its largest violation and
-    the t of it; an inclusion adds "the set may be empty" where F_b(x) certainly is.
+    An end condition gives its target, the value x_j at the last node (with the digits the
+    gap needs) and the gap between them; this is the compromise's value, so where the
+    dynamics carry a share of I it says that the value is reached "only by violating the
+    dynamics" (the nearest value the inclusion itself reaches may be farther). It adds that
+    the target "may lie outside the reachable set" only where a test of reachability
+    supports it (:func:`reach_bound`): x_j(0) plus the quadrature of the largest (or
+    least) x_j' that F allows at the states the iterate visits falls short of the target.
+    A pointwise condition gives its largest violation and the t of it; an inclusion adds
+    "the set may be empty" where F_b(x) certainly is.
     """
     clauses = condition_parts(functional, xi)
     total = sum(clause.part for clause in clauses)
@@ -57,12 +63,102 @@ def unmet_conditions(functional: Functional, xi: np.ndarray, gap_tol: float = GA
     if missed and not any(clause.kind in ("end", "periodic") for clause in named):
         named = named[: MAX_CLAUSES - 1] + missed[:1]
     texts = [clause.text for clause in named]
-    ends = [index for index, clause in enumerate(named) if clause.kind == "end"]
-    if ends:  # once, after the last end condition named
-        dynamics = sum(clause.part for clause in clauses if clause.kind in ("inclusion", "consistency", "selection"))
-        texts[ends[-1]] += ((", only by violating the dynamics" if dynamics >= SHARE * total else "")
-                            + f"; {'they' if len(ends) > 1 else 'it'} may lie outside the reachable set")
+    dynamics = sum(clause.part for clause in clauses if clause.kind in ("inclusion", "consistency", "selection"))
+    for number, clause in enumerate(named):
+        if clause.kind != "end":
+            continue
+        if dynamics >= SHARE * total:
+            texts[number] += ", only by violating the dynamics"
+        try:
+            bound = reach_bound(functional, xi, clause.index)
+        except (QdframeError, ArithmeticError, ValueError):  # the test failed (the model NaN in a simulation, …): no claim
+            bound = None
+        if bound is not None:
+            texts[number] += f"; it may lie outside the reachable set ({bound})"
     return "; ".join(texts)
+
+
+def reach_bound(functional: Functional, xi: np.ndarray, j: int) -> str | None:
+    """A test of whether x_j(T) can reach its target: the clause that supports "it may lie
+    outside the reachable set", or None. Two tests, where they apply (x_j(0) given, no
+    unknown controls, x_j not a resolved state):
+
+    - deterministic dynamics (x(0) given, every block one coordinate whose set is a point
+      plus sign terms): the reachable set is the Filippov solution from x(0), simulated
+      (:func:`qdframe.simulate.simulate`, implicit Euler with exact selections) with
+      SIMULATION_STEPS and twice as many steps; a target farther from the finer end value
+      than 10 times the two's difference (plus 1e-6·max(1, |target|)) is not reached;
+    - otherwise a speed bound: F_b(y) bounds x_j' by c(F_b(y), ±e_j), its support along
+      ±e_j (a sign term by its whole a·[−1, 1]); its largest value S± over the states the
+      iterate visits and REACH_SAMPLES states drawn in a box around them, x(0) and the
+      targets (each side widened by max(1, its width)) bounds every trajectory that stays
+      in the box: x_j(0) − T·S− ≤ x_j(T) ≤ x_j(0) + T·S+, and a target beyond that (by
+      more than 1e-6·max(1, |target|)) supports the remark.
+    """
+    model = functional.model
+    if functional.m or not functional.start_given[j] or j in functional.resolved:
+        return None
+    target = float(model.end_values[list(functional.end).index(j)])
+    margin, name = 1e-6 * max(1.0, abs(target)), model.state_names[j]
+    if _deterministic(functional):
+        from .simulate import simulate
+
+        ends = [simulate(model, 0.0, model.T, model.x0, dt=model.T / steps).x[-1, j]
+                for steps in (SIMULATION_STEPS, 2 * SIMULATION_STEPS)]
+        error = abs(ends[1] - ends[0])
+        if np.isfinite(ends[1]) and abs(ends[1] - target) > 10.0 * error + margin:
+            return f"the Filippov solution from x(0) ends at {name}(T) = {_number(ends[1], abs(ends[1] - target))}"
+        return None
+    block = next(block for block in functional.blocks if j in block.coords)
+    x = functional.arguments(xi)
+    known = np.vstack([x, np.where(np.isfinite(model.x0), model.x0, x[0])[None, :]])  # a free x_i(0): the iterate's
+    if not np.all(np.isfinite(known)):
+        return None
+    lo, hi = known.min(axis=0), known.max(axis=0)
+    for i, value in zip(functional.end, model.end_values):
+        lo[i], hi[i] = min(lo[i], value), max(hi[i], value)
+    pad = np.maximum(1.0, hi - lo)
+    box = np.random.default_rng(0).uniform(lo - pad, hi + pad, size=(REACH_SAMPLES, x.shape[1]))
+    y = np.vstack([x, box])
+    psi = np.zeros((y.shape[0], block.size))
+    psi[:, list(block.coords).index(j)] = 1.0
+    zero = np.zeros((y.shape[0], functional.n))
+    with np.errstate(all="ignore"):
+        faster = float(np.max(-functional._side(block, y, zero, psi).ell))  # S+: the largest x_j'
+        slower = float(np.max(-functional._side(block, y, zero, -psi).ell))  # S−: the largest −x_j'
+    start, T = float(model.x0[j]), float(model.T)
+    if np.isfinite(faster) and target > start + T * faster + margin:
+        return (f"{name}' ≤ {faster:.4g} at every state tried, so {name}(T) ≤ "
+                f"{_number(start + T * faster, target - start - T * faster)}")
+    if np.isfinite(slower) and target < start - T * slower - margin:
+        return (f"{name}' ≥ {-slower:.4g} at every state tried, so {name}(T) ≥ "
+                f"{_number(start - T * slower, start - T * slower - target)}")
+    return None
+
+
+REACH_SAMPLES = 256  # states drawn in the box around the problem by reach_bound's speed bound, with the iterate's
+SIMULATION_STEPS = 10_000  # reach_bound's simulation: this many steps and twice as many (~0.05 s together)
+
+
+def _deterministic(functional: Functional) -> bool:
+    """Whether x' ∈ F(x) has one Filippov solution from the given x(0) to simulate: x(0)
+    given, no controls, and every block one coordinate whose set is a point (max-groups of
+    one piece, no min-group) plus sign terms."""
+    model = functional.model
+    if functional.m or not np.all(np.isfinite(model.x0)):
+        return False
+    y = model.x0[None, :]
+    for block in functional.blocks:
+        if block.size != 1 or block.min_groups:
+            return False
+        for group in block.max_groups:
+            try:
+                values = np.asarray(group.pieces(y)[0])
+            except Exception:  # the model's own error shows elsewhere; no claim here
+                return False
+            if values.ndim != 3 or values.shape[1] != 1:
+                return False
+    return True
 
 
 def condition_parts(functional: Functional, xi: np.ndarray) -> list[Clause]:
@@ -102,11 +198,11 @@ def condition_parts(functional: Functional, xi: np.ndarray) -> list[Clause]:
     for j, target, residual in zip(functional.end, model.end_values, end):  # χ
         gap = abs(x[-1, j] - target)
         clauses.append(Clause(0.5 * float(residual) ** 2, f"end condition {names[j]}(T) = {target:g} not reached: "
-                              f"nearest {_number(x[-1, j])} (gap {gap:.1e})", "end", gap))
+                              f"nearest {_number(x[-1, j], gap)} (gap {gap:.1e})", "end", gap, int(j)))
     for i, residual in zip(functional.periodic, end[functional.end.size:]):  # χ, periodic
         gap = abs(x[-1, i] - x[0, i])
         clauses.append(Clause(0.5 * float(residual) ** 2, f"periodic condition {names[i]}(T) = {names[i]}(0) not met: "
-                              f"{names[i]}(0) = {_number(x[0, i])}, {names[i]}(T) = {_number(x[-1, i])} "
+                              f"{names[i]}(0) = {_number(x[0, i], gap)}, {names[i]}(T) = {_number(x[-1, i], gap)} "
                               f"(gap {gap:.1e})", "periodic", gap))
     if functional.surface is not None:  # ω
         e = np.abs(functional.surface_values(xi)[0])
@@ -140,6 +236,13 @@ def _empty(functional: Functional, block: SetBlock, sides: DistanceSides, y: np.
     return total > EMPTY_TOL * (1.0 + np.abs(ells[0]))
 
 
-def _number(value: float) -> str:
-    """A value reached: 1.000, or 1.000e-05 and 1.000e+06 off [1e-3, 1e5)."""
-    return f"{value:.3f}" if value == 0 or 1e-3 <= abs(value) < 1e5 else f"{value:.3e}"
+def _number(value: float, gap: float = 0.0) -> str:
+    """A value reached, with the significant digits that show a difference of `gap` from it
+    (at least 4, at most 15): 2.5, 0.9997 for a gap of 3e-4 (not 1.000), 1.00000012."""
+    if not np.isfinite(value):
+        return str(value)
+    scale = abs(value)
+    digits = 4
+    if gap > 0 and scale > 0:
+        digits = int(np.clip(np.ceil(np.log10(scale / gap)) + 2, 4, 15))
+    return f"{value:#.{digits}g}"

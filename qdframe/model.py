@@ -262,7 +262,11 @@ class InclusionModel(ABC):
         return None
 
     def _check_blocks(self) -> None:
-        for block in self.blocks():
+        from .registry import plugin_code
+
+        with plugin_code(self, "blocks()"):
+            blocks = tuple(self.blocks())
+        for block in blocks:
             if block.signs and block.size != 1:
                 raise InputError(f"{type(self).__name__}.blocks", "sign terms only in one-coordinate blocks", block.coords)
             for term in block.signs:
@@ -273,7 +277,7 @@ class InclusionModel(ABC):
         for i, j in self.resolved.items():
             if not (0 <= i < self.n_states and 0 <= j < self.n_states):
                 raise InputError(f"{type(self).__name__}.resolved", f"pairs i: j of indices in 0..{self.n_states - 1}", (i, j))
-        covered = sorted([c for block in self.blocks() for c in block.coords] + list(self.resolved))
+        covered = sorted([c for block in blocks for c in block.coords] + list(self.resolved))
         if covered != list(range(self.n_states)):
             raise InputError(
                 f"{type(self).__name__}.blocks",

@@ -4,13 +4,21 @@ F(x(t)), and the functional per iteration on a log scale.
 :func:`plot_result` (and :meth:`SolveResult.plot <qdframe.result.SolveResult.plot>`)
 returns the Matplotlib Figure and saves it only when given a path:
 
-* left: x(t) by state name (and the unknown controls u(t), dashed);
-* middle: z(t) = x'(t), labelled x1′, x2′, …, with the interval [lo_i, hi_i] of every
+* left: x(t) by state name, with the error estimate e in the title and as a band x ± e
+  (not drawn, and the title says so, when it is below a line's width at the panel's
+  scale) and the switch times;
+  the unknown controls u(t) on their own axes below (their scale is not the states': on
+  paper-7.3 u peaks at 62 while the states stay within ±3);
+* middle: z(t) = x'(t), labelled x₁′, x₂′, …, with the interval [lo_i, hi_i] of every
   one-coordinate set F_i(x(t)) shaded in its coordinate's color; for a block of k ≥ 2
   coordinates (a ball, an intersection: ψ ∈ S_k) the norm |z_b(t)| against the model's
   support value c(F_b(x(t)), z_b/|z_b|), which z_b ∈ F_b(x) keeps above |z_b|;
 * right: I (and the objective when the model has a cost) per iteration, a new stage
-  (the next grid of a continuation, or the exact-sign solve after its band start) marked.
+  (the next grid of a continuation, or the exact-sign solve after its band start) marked
+  by a vertical line labelled along it with its grid.
+
+Labels are mathtext (x₁, F₁(x(t)), ½(z_{k−1} + z_k)); every legend sits below its panel,
+outside the data, and the figure's layout makes room for it.
 
 The trapezoid rule integrates the interval means (z_{k−1} + z_k)/2, x_k = x_{k−1} +
 h·(z_{k−1} + z_k)/2, and leaves the alternating mode z_k = (−1)^k·c of the nodal
@@ -20,6 +28,7 @@ midpoints (and the means of the bounds, which contain them), not the nodal zig-z
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -35,6 +44,13 @@ if TYPE_CHECKING:
 
 VELOCITY_MODES = ("auto", "nodes", "means")
 POINT_WIDTH = 1e-12  # relative: an interval [lo, hi] no wider than this is drawn as a point
+BAND_VISIBLE = 5e-3  # the error band x ± e is drawn when 2e is at least this fraction of the states' range
+LEGEND_GAP = 34.0  # points from the bottom of a panel to its legend: below the tick labels and the axis label
+LEGEND_WIDTH = 44  # characters a legend line may take under a panel (wider labels wrap, or take one column)
+STAGES_NAMED = 4  # the history legend names the grid and first iteration of this many stages
+GREEK = {"alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa", "lambda", "mu",
+         "nu", "xi", "pi", "rho", "sigma", "tau", "upsilon", "phi", "chi", "psi", "omega", "Gamma", "Delta",
+         "Theta", "Lambda", "Xi", "Pi", "Sigma", "Phi", "Psi", "Omega"}
 
 
 def plot_result(
@@ -43,7 +59,7 @@ def plot_result(
     *,
     model: InclusionModel | None = None,
     velocities: Literal["auto", "nodes", "means"] = "auto",
-    figsize: tuple[float, float] = (14.0, 4.4),
+    figsize: tuple[float, float] = (14.0, 5.6),
     dpi: float = 100.0,
 ) -> Figure:
     """The three-panel figure of `result`; written to `path` when given (format from the
@@ -72,8 +88,17 @@ def plot_result(
         from matplotlib.figure import Figure
 
         fig = Figure(figsize=figsize, layout="constrained")
-    trajectories, velocity_axes, history = fig.subplots(1, 3)
+    if result.u is None:
+        trajectories, velocity_axes, history = fig.subplots(1, 3)
+        inputs = None
+    else:  # the controls on their own axes under the states: another scale
+        grid = fig.add_gridspec(2, 3, height_ratios=(3, 2))
+        trajectories = fig.add_subplot(grid[0, 0])
+        velocity_axes, history = fig.add_subplot(grid[:, 1]), fig.add_subplot(grid[:, 2])
+        inputs = fig.add_subplot(grid[1, 0], sharex=trajectories)
     _trajectories(trajectories, result)
+    if inputs is not None:
+        _inputs(inputs, result)
     scheme = result.options.get("scheme", "")
     means = velocities == "means" or (velocities == "auto" and scheme == "trapezoid")
     _velocities(velocity_axes, result, means, model)
@@ -104,27 +129,85 @@ def _colors() -> list[str]:
     return mpl.rcParams["axes.prop_cycle"].by_key()["color"]
 
 
+def math_label(name: str, prime: bool = False) -> str:
+    """A state or control name as mathtext: x1 → $x_{1}$, theta → $\\theta$, omega2′ → $\\omega_{2}'$,
+    position → $\\mathrm{position}$; a name mathtext cannot take stays text (with ′)."""
+    import re
+
+    match = re.fullmatch(r"([A-Za-z]+?)_?(\d*)", name)
+    if match is None:
+        return name + ("′" if prime else "")
+    letters, digits = match.groups()
+    base = f"\\{letters}" if letters in GREEK else letters if len(letters) == 1 else f"\\mathrm{{{letters}}}"
+    return f"${base}" + (f"_{{{digits}}}" if digits else "") + ("'" if prime else "") + "$"
+
+
+def _legend_below(ax: Axes, handles: list | None = None, labels: list | None = None, *, columns: int = 2,
+                  title: str | None = None) -> None:
+    """The panel's legend under it, LEGEND_GAP points below its frame (clear of the tick labels and
+    the axis label): never over the data; the figure's constrained layout makes room."""
+    from matplotlib.transforms import offset_copy
+
+    import re
+
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    # no wider than its panel: the layout would squeeze the panels, and a legend wider than the
+    # figure would be cut. Plain labels are wrapped; a long label (mathtext counted as shown) gets one column
+    labels = [label if "$" in label else textwrap.fill(label, LEGEND_WIDTH) for label in labels]
+    widest = max(len(line) for label in labels for line in re.sub(r"\$[^$]*\$", "xx", label).splitlines())
+    columns = max(1, min(columns, len(handles), LEGEND_WIDTH // max(widest, 1)))
+    below = offset_copy(ax.transAxes, fig=ax.figure, y=-LEGEND_GAP, units="points")
+    ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=below,
+              ncol=columns, fontsize="small", title=title, title_fontsize="x-small")
+
+
 def _trajectories(ax: Axes, result: SolveResult) -> None:
-    """x(t) by state name with its error estimate as a band x ± error_estimate, the switch
-    times as dotted verticals, and the unknown controls u(t) dashed (paper Figure 4)."""
+    """x(t) by state name with its error estimate as a band x ± error_estimate (a legend
+    line instead when the band is thinner than a line at this scale) and the switch times
+    as dotted verticals (paper Figure 4)."""
     colors = _colors()
     estimate = getattr(result, "error_estimate", None)
+    x = np.asarray(result.x, float)
+    span = float(np.ptp(x)) if x.size else 0.0
+    visible = estimate is not None and 2.0 * estimate >= BAND_VISIBLE * max(span, 1e-300)
     for i, name in enumerate(result.state_names):
         color = colors[i % len(colors)]
-        ax.plot(result.t, result.x[:, i], color=color, label=name)
-        if estimate is not None:
-            ax.fill_between(result.t, result.x[:, i] - estimate, result.x[:, i] + estimate, color=color, alpha=0.25,
-                            lw=0, label=f"± error estimate {estimate:.1e}" if i == 0 else None)
+        ax.plot(result.t, x[:, i], color=color, label=math_label(name))
+        if visible:
+            ax.fill_between(result.t, x[:, i] - estimate, x[:, i] + estimate, color=color, alpha=0.25,
+                            lw=0, label="$x \\pm e$" if i == 0 else None)
+    handles, labels = ax.get_legend_handles_labels()
+    _switch_lines(ax, result, handles, labels)
+    title = "trajectories"
+    if estimate is not None:  # the value in the title; a band no one could see is not drawn, and said so
+        title += f"\nerror estimate e = {estimate:.1e}" + ("" if visible else " (below line width)")
+    ax.set(title=title, xlabel="t", ylabel="state $x(t)$")
+    _legend_below(ax, handles, labels, columns=3 if len(labels) > 4 else 2)
+
+
+def _switch_lines(ax: Axes, result: SolveResult, handles: list, labels: list) -> None:
+    """The switch times as dotted verticals, one legend entry."""
     for k, time in enumerate(getattr(result, "switch_times", ())):
-        ax.axvline(time, color="0.4", ls=":", lw=1.0, label="switch times" if k == 0 else None)
-    ylabel = "state x(t)"
-    if result.u is not None:
-        m = result.u.shape[1]
-        for j in range(m):
-            ax.plot(result.t, result.u[:, j], "k--", lw=1.2, label=f"u{j + 1}" if m > 1 else "u")
-        ylabel = "state x(t), control u(t)"
-    ax.set(title="trajectories", xlabel="t", ylabel=ylabel)
-    ax.legend(ncol=2 if len(result.state_names) > 3 else 1, fontsize="small")
+        line = ax.axvline(time, color="0.4", ls=":", lw=1.0)
+        if k == 0:
+            handles.append(line)
+            labels.append("switch times")
+
+
+def _inputs(ax: Axes, result: SolveResult) -> None:
+    """The unknown controls u(t) on their own axes (another scale than the states')."""
+    u = np.asarray(result.u, float)
+    names = list(result.control_names) or [f"u{j + 1}" for j in range(u.shape[1])]
+    styles = ["-", "--", "-.", ":"]
+    for j, name in enumerate(names):
+        ax.plot(result.t, u[:, j], color="k", ls=styles[j % len(styles)], lw=1.2, label=math_label(name))
+    handles, labels = ax.get_legend_handles_labels()
+    _switch_lines(ax, result, handles, labels)
+    ax.set(xlabel="t", ylabel="control $u(t)$")
+    _legend_below(ax, handles, labels, columns=4)
 
 
 def _velocities(ax: Axes, result: SolveResult, means: bool, model: InclusionModel | None) -> None:
@@ -137,7 +220,7 @@ def _velocities(ax: Axes, result: SolveResult, means: bool, model: InclusionMode
     average = (lambda v: 0.5 * (v[1:] + v[:-1])) if means else (lambda v: v)
     tt = average(t)
     for i, name in enumerate(names):
-        ax.plot(tt, average(z[:, i]), color=colors[i % len(colors)], label=f"{name}′")
+        ax.plot(tt, average(z[:, i]), color=colors[i % len(colors)], label=math_label(name, prime=True))
     handles: list[Any] = []
     points: list[str] = []  # coordinates whose F_i(x(t)) is a single point (an equation, a selection)
     for bounds in result.set_bounds:
@@ -146,25 +229,25 @@ def _velocities(ax: Axes, result: SolveResult, means: bool, model: InclusionMode
         lower, upper = average(np.asarray(bounds["lower"], float)), average(np.asarray(bounds["upper"], float))
         i = bounds["coordinate"]
         if np.all(upper - lower <= POINT_WIDTH * (1.0 + np.abs(upper))):
-            points.append(f"{names[i]}′")
+            points.append(math_label(names[i], prime=True))
             continue
         color = colors[i % len(colors)]
         ax.fill_between(tt, lower, upper, color=color, alpha=0.18, lw=0)
         ax.plot(tt, lower, color=color, ls="--", lw=0.8)
         ax.plot(tt, upper, color=color, ls=":", lw=0.8)
         handles.append(Patch(facecolor=color, alpha=0.35, edgecolor=color, ls="--",
-                             label=f"F_{i + 1}(x(t)) bounds of {names[i]}′ (-- lower, ·· upper)"))
+                             label=f"$F_{{{i + 1}}}(x(t))$ bounds of {math_label(names[i], prime=True)} "
+                                   "(-- lower, ·· upper)"))
     notes = _block_supports(ax, result, means, model, colors)
     if points:
-        notes.append(f"F_i(x(t)) a single point for {', '.join(points)}")
-    title = "velocities x′ = z"
+        notes.append(f"$F_i(x(t))$ a single point for {', '.join(points)}")
+    title = "velocities $x' = z$"
     if means:
-        title += ": interval means ½(z_{k−1} + z_k) (trapezoid)"
-    ax.set(title=title, xlabel="t" + (" (interval midpoints)" if means else ""), ylabel="z(t) = x′(t)")
+        title += ": interval means $\\frac{1}{2}(z_{k-1} + z_k)$ (trapezoid)"
+    ax.set(title=title, xlabel="t" + (" (interval midpoints)" if means else ""), ylabel="$z(t) = x'(t)$")
     lines, labels = ax.get_legend_handles_labels()
-    ax.legend(lines + handles, labels + [h.get_label() for h in handles],
-              ncol=2 if len(lines) + len(handles) > 6 else 1, fontsize="small",
-              title="\n".join(notes) or None, title_fontsize="x-small")
+    _legend_below(ax, lines + handles, labels + [h.get_label() for h in handles],
+                  columns=3 if len(lines) + len(handles) > 4 else 2, title="\n".join(notes) or None)
 
 
 def _block_supports(ax: Axes, result: SolveResult, means: bool, model: InclusionModel | None,
@@ -183,7 +266,7 @@ def _block_supports(ax: Axes, result: SolveResult, means: bool, model: Inclusion
     notes = []
     for b in missing:
         coords = list(blocks[b].coords) if blocks is not None else _unbounded_coords(result)
-        label = "(" + ", ".join(f"{result.state_names[i]}′" for i in coords) + ")"
+        label = "(" + ", ".join(math_label(result.state_names[i], prime=True) for i in coords) + ")"
         color = colors[(len(result.state_names) + b) % len(colors)]  # apart from the coordinates' colors
         zb = z[:, coords]
         if means:
@@ -195,8 +278,9 @@ def _block_supports(ax: Axes, result: SolveResult, means: bool, model: Inclusion
             notes.append(f"F on {label}: a set in R^{len(coords)}, its support not drawn\n({why}; pass model=)")
             continue
         support = _support(model, blocks[b], y, zb, means)
-        ax.plot(tt, support, color=color, ls="--", lw=1.4, label="c(F(x(t)), z/|z|)")
-        notes.append(f"F on {label} = {_set_name(blocks[b])}\nz ∈ F gives |z| ≤ c(F, z/|z|), its support along z")
+        ax.plot(tt, support, color=color, ls="--", lw=1.4, label="$c(F(x(t)),\\, z/|z|)$")
+        notes.append(f"F on {label} = {_set_name(blocks[b])}\n$z \\in F$ gives $|z| \\leq c(F, z/|z|)$, "
+                     "its support along z")
     return notes
 
 
@@ -267,16 +351,16 @@ def _history(ax: Axes, result: SolveResult) -> None:
             zeros += [h.iteration for h, v in zip(stage, values) if v == 0]
             ax.semilogy([h.iteration for h in stage], np.where(values > 0, values, np.nan), marker=".",
                         color=color, label=label if s == 0 else None)
+    starts = [f"{stage[0].nodes} at {stage[0].iteration}" for stage in stages[1:]]
+    shown = ", ".join(starts[:STAGES_NAMED]) + (f", … ({len(starts)} in all)" if len(starts) > STAGES_NAMED else "")
     for s, stage in enumerate(stages[1:]):
-        first = stage[0]
-        ax.axvline(first.iteration, color="0.5", ls=":", lw=1)
-        # labels stacked down the axis: stages a few iterations apart (refined meshes) do not overprint
-        ax.annotate(f" N = {first.nodes}" if s else f" new stage, N = {first.nodes}", (first.iteration, 0.98 - 0.06 * (s % 8)),
-                    xycoords=("data", "axes fraction"), va="top", fontsize="x-small", color="0.35")
+        # each new stage a dotted line; which grid starts where is said in the legend, not over the data
+        ax.axvline(stage[0].iteration, color="0.5", ls=":", lw=1,
+                   label=f"new stage{'s' if len(starts) > 1 else ''} (grid N at iteration): {shown}" if s == 0 else None)
     if zeros:
         ax.plot(sorted(set(zeros)), [0.0] * len(set(zeros)), "v", color="k", transform=ax.get_xaxis_transform(),
                 clip_on=False, label="value 0 (off the log scale)")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set(title="functional per iteration", xlabel="iteration",
-           ylabel="objective, I" if result.cost is not None else "I = φ + χ + ω + υ + σ")
-    ax.legend(fontsize="small")
+           ylabel="objective, $I$" if result.cost is not None else "$I = \\varphi + \\chi + \\omega + \\upsilon + \\sigma$")
+    _legend_below(ax, columns=2)

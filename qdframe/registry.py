@@ -5,17 +5,20 @@ plugin's (`qdframe.models`, `qdframe.directions`, `qdframe.line_searches`,
 `qdframe.schemes`). A plugin
 that fails to load is a warning naming its distribution; two distributions claiming
 one name give a warning and a deterministic winner (qdframe itself first, then by
-distribution name); an unknown name is an error listing the available ones.
+distribution name); an unknown name is an error suggesting the close ones ("did you
+mean …?"), and a name whose plugin failed to load an error saying so (not a typo).
 """
 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib.metadata import EntryPoint, entry_points
 
-from .errors import UnknownNameError
+from .errors import PluginCodeError, PluginLoadError, QdframeError, UnknownNameError
 
 GROUPS = {
     "models": "qdframe.models",
@@ -89,13 +92,46 @@ def _load(kind: str, name: str) -> Entry | None:
             stacklevel=4,
         )
         return None
-    return Entry(kind, ep.name, dist, ep.value, obj)
+    entry = Entry(kind, ep.name, dist, ep.value, obj)
+    if isinstance(obj, type):
+        _PROVIDERS.setdefault(obj, entry)
+    return entry
+
+
+_PROVIDERS: dict[type, Entry] = {}
+"""The entry of each class loaded so far, to name a plugin's distribution in its errors."""
+
+
+def provider(cls: type) -> Entry | None:
+    """The registered entry that provides `cls` (or the nearest registered base class it
+    extends: a subclass made at run time), among those loaded; None if none."""
+    for base in getattr(cls, "__mro__", ()):
+        if base in _PROVIDERS:
+            return _PROVIDERS[base]
+    return None
 
 
 def available(kind: str) -> dict[str, Entry]:
     """Every loadable entry of a kind ('models', 'directions', 'line_searches'); imports them all."""
     loaded = {name: _load(kind, name) for name in _points(kind)}
     return {name: entry for name, entry in loaded.items() if entry is not None}
+
+
+@contextmanager
+def plugin_code(owner: object, method: str, kind: str = "model") -> Iterator[None]:
+    """Run a plugin's own code (a model's `__init__`, `sets()`, `initial_guess()`, …): an
+    exception that is not qdframe's becomes a :class:`PluginCodeError`, one line naming the
+    distribution, the model, the method and the file and line that raised (the original
+    chained as its cause). qdframe's own errors pass unchanged."""
+    try:
+        yield
+    except QdframeError:
+        raise
+    except Exception as exc:
+        cls = owner if isinstance(owner, type) else type(owner)
+        entry = provider(cls)
+        name = (entry.name if entry is not None and isinstance(owner, type) else getattr(owner, "name", "")) or cls.__name__
+        raise PluginCodeError(f"{kind} {name!r}", method, exc, entry.distribution if entry else None) from exc
 
 
 def names(kind: str) -> list[str]:
@@ -107,15 +143,21 @@ def refresh() -> None:
     """Forget the cached entry points (after installing a plugin at run time)."""
     _points.cache_clear()
     _load.cache_clear()
+    _PROVIDERS.clear()
 
 
 def lookup(kind: str, name: str) -> Entry:
     """The entry called `name`, importing only it. A name 'prefix:arg' resolves to the
-    entry 'prefix:'. An unknown (or unloadable) name is an error listing the others."""
+    entry 'prefix:'. An unknown name is an UnknownNameError suggesting close names; a name
+    whose plugin cannot be imported a PluginLoadError naming its distribution."""
     points = _points(kind)
     prefix, sep, _ = name.partition(":")
     key = name if name in points else f"{prefix}:" if sep and f"{prefix}:" in points else None
-    entry = _load(kind, key) if key is not None else None
+    if key is None:  # 'qpsolver:daqp' is compared with 'qpsolvers:daqp', the entry 'qpsolvers:' with its argument
+        _, _, argument = name.partition(":")
+        known = sorted(f"{n}{argument}" if n.endswith(":") and sep else n for n in points)
+        raise UnknownNameError(KIND_LABEL[kind], name, known)
+    entry = _load(kind, key)
     if entry is None:
-        raise UnknownNameError(KIND_LABEL[kind], name, [n for n in sorted(points) if n != key])
+        raise PluginLoadError(KIND_LABEL[kind], name, _distribution(points[key]))
     return entry

@@ -15,6 +15,10 @@ last points of one regime, extrapolated to the event:
 Where the scheme is exact on the pieces (Radau IIA on quadratic motion, implicit Euler
 on the velocity of a block) one location is exact; otherwise the switch is re-located on
 the mesh that has a point there, and converges (see :mod:`qdframe.adaptive`).
+
+The times returned lie in [0, T] (an extrapolation past an end, such as a block at rest
+at t = 0 that starts to move, is the end itself), and times closer than the mesh step
+there are one switch (two terms that change regime together, located twice): their mean.
 """
 
 from __future__ import annotations
@@ -29,11 +33,12 @@ ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (
 SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime
 
 
-def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True) -> np.ndarray:
+def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True, merge: bool = True) -> np.ndarray:
     """The located switch times of the iterate ξ, increasing (empty without sign terms);
     `crossings=False` leaves out the transversal crossings of a surface (s changes sign,
     λ jumps from one end of [−1, 1] to the other), keeping the stops, sticks, break-aways
-    and the entries into and exits from sliding."""
+    and the entries into and exits from sliding; `merge=False` keeps times closer than the
+    mesh step apart (the refinement pins a mesh point on each)."""
     if not functional.p:
         return np.zeros(0)
     grid = functional.grid
@@ -42,7 +47,29 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True)
     for k, (b, term) in enumerate(functional.selection_terms):
         s = functional._switch(functional.blocks[b], term, y)[0]
         found += [time for time, crossing in _locate(grid.t, grid.mesh, s, lam[:, k]) if crossings or not crossing]
-    return np.unique(np.round(np.asarray(found, dtype=float), 14))
+    times = np.clip(np.asarray(found, dtype=float), grid.t[0], grid.t[-1]) + 0.0  # + 0.0: no −0
+    times = np.unique(np.round(times, 14))
+    return merge_close(times, grid.mesh_times) if merge else times
+
+
+def merge_close(times: np.ndarray, mesh: np.ndarray) -> np.ndarray:
+    """Increasing `times` with runs closer than the mesh resolution merged into their mean:
+    consecutive times a ≤ b are one when b − a is at most the larger length of the mesh
+    intervals of [mesh_0, mesh_K] that hold a and b."""
+    if times.size < 2:
+        return times
+
+    def step(time: float) -> float:
+        j = int(np.clip(np.searchsorted(mesh, time, side="right") - 1, 0, mesh.size - 2))
+        return float(mesh[j + 1] - mesh[j])
+
+    groups = [[float(times[0])]]
+    for time in times[1:]:
+        if time - groups[-1][-1] <= max(step(groups[-1][-1]), step(float(time))):
+            groups[-1].append(float(time))
+        else:
+            groups.append([float(time)])
+    return np.array([float(np.mean(group)) for group in groups])
 
 
 def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> list[tuple[float, bool]]:

@@ -15,10 +15,10 @@ from qdframe.result import _grids
 def test_debug_is_accepted_after_the_subcommand(capsys):
     assert main(["solve", "no-such-model"]) == 2  # one line
     assert "no-such-model" in capsys.readouterr().err
-    with pytest.raises(InputError):  # --debug: the traceback, wherever the flag stands
-        main(["solve", "no-such-model", "--debug"])
-    with pytest.raises(InputError):
-        main(["--debug", "solve", "no-such-model"])
+    for argv in (["solve", "no-such-model", "--debug"], ["--debug", "solve", "no-such-model"]):
+        assert main(argv) == 2  # --debug: the traceback, wherever the flag stands, and the same exit status
+        err = capsys.readouterr().err
+        assert "Traceback" in err and "UnknownNameError" in err
 
 
 def test_option_sets_a_direction_field():

@@ -7,6 +7,7 @@ import pytest
 
 from qdframe import registry
 from qdframe.cli import main
+from qdframe.status import EXIT_CODES
 from qdframe.errors import UnknownNameError
 
 
@@ -23,8 +24,8 @@ def test_list_json_names_distributions(capsys):
 def test_solve_writes_json_and_plot(tmp_path, capsys):
     out, fig = tmp_path / "r.json", tmp_path / "r.png"
     code = main(["solve", "paper-7.2", "--direction", "native", "--nodes", "11", "--max-iter", "2", "--json", str(out), "--plot", str(fig)])
-    assert code == 0
     data = json.loads(out.read_text())
+    assert data["status"] == "max_iter" and code == EXIT_CODES[data["status"]] == 5  # two iterations: the budget
     assert data["model"] == "paper-7.2" and data["iterations"] == 2
     assert fig.stat().st_size > 1000
     assert "status" in capsys.readouterr().out
@@ -34,8 +35,9 @@ def test_solve_writes_json_and_plot(tmp_path, capsys):
                                          (["--continuation", "auto"], [11, 51]), (["--continuation", "21"], [21, 51])])
 def test_continuation_flag(flag, grids, tmp_path):
     out = tmp_path / "r.json"
-    assert main(["solve", "paper-7.2", "--direction", "native", "--nodes", "51", "--quiet", "--json", str(out)] + flag) == 0
+    code = main(["solve", "paper-7.2", "--direction", "native", "--nodes", "51", "--quiet", "--json", str(out)] + flag)
     data = json.loads(out.read_text())
+    assert code == EXIT_CODES[data["status"]]  # the paper's method ends stationary (4) on 7.2
     assert data["options"]["grids"] == grids and data["nodes"] == 51
     assert sorted({record["nodes"] for record in data["history"]}) == grids
 
@@ -43,7 +45,7 @@ def test_continuation_flag(flag, grids, tmp_path):
 def test_overrides_reach_the_model(tmp_path):
     out = tmp_path / "r.json"
     assert main(["solve", "paper-7.2", "--nodes", "5", "--max-iter", "0", "--T", "2", "--x0=0.5,-1",
-                 "--xT", "1,1", "--json", str(out), "--quiet"]) == 0
+                 "--xT", "1,1", "--json", str(out), "--quiet"]) == EXIT_CODES["max_iter"]
     data = json.loads(out.read_text())
     assert data["T"] == 2.0 and data["x"][0] == [0.5, -1.0] and data["t"][-1] == 2.0
 

@@ -17,7 +17,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from qdframe.descent import load_model, solve  # noqa: E402
 from qdframe.errors import InputError  # noqa: E402
-from qdframe.plotting import plot_result  # noqa: E402
+from qdframe.plotting import math_label, plot_result  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -62,21 +62,21 @@ def test_the_iteration_axis_has_integer_ticks(result71):
 
 def test_velocities_are_labelled_by_state_names_and_the_band_is_in_the_legend(result71):
     labels = _labels(result71.plot().axes[1])
-    assert {f"{name}′" for name in result71.state_names} <= set(labels)
+    assert {math_label(name, prime=True) for name in result71.state_names} <= set(labels)
     assert not any(label.startswith("z1") for label in labels)
     banded = [b for b in result71.set_bounds if b is not None and np.ptp(np.subtract(b["upper"], b["lower"])) > 0]
     assert banded, "paper-7.1 has a one-coordinate set of positive width"
     for bounds in banded:
         i = bounds["coordinate"]
-        assert any(label.startswith(f"F_{i + 1}(x(t)) bounds") for label in labels), labels
+        assert any(label.startswith(f"$F_{{{i + 1}}}(x(t))$ bounds") for label in labels), labels
 
 
 def test_a_ball_set_shows_the_norm_of_z_against_its_support(result72):
     assert all(bounds is None for bounds in result72.set_bounds)  # no one-coordinate bounds in 7.2
     middle = result72.plot().axes[1]
     lines = {line.get_label(): line for line in middle.get_lines()}
-    norm = lines["|(x1′, x2′)|"].get_ydata()
-    support = lines["c(F(x(t)), z/|z|)"].get_ydata()
+    norm = lines["|($x_{1}'$, $x_{2}'$)|"].get_ydata()
+    support = lines["$c(F(x(t)),\\, z/|z|)$"].get_ydata()
     assert len(norm) == len(support) > 1
     # z ∈ F(x) means <z, ψ> ≤ c(F, ψ) for every ψ, so along ψ = z/|z|: |z| ≤ c (solved run)
     assert result72.solved and np.all(norm <= support + 1e-9)
@@ -89,11 +89,11 @@ def test_without_a_registered_model_the_norm_is_still_drawn_with_a_note(result72
     renamed = dataclasses.replace(result72, model="no-such-model")
     middle = renamed.plot().axes[1]
     labels = [line.get_label() for line in middle.get_lines()]
-    assert "|(x1′, x2′)|" in labels and not any(label.startswith("c(") for label in labels)
+    assert "|($x_{1}'$, $x_{2}'$)|" in labels and not any(label.startswith("$c(") for label in labels)
     assert "pass model=" in middle.get_legend().get_title().get_text()
     # the model given by hand brings the support back
     middle = renamed.plot(model=load_model("paper-7.2")).axes[1]
-    assert any(line.get_label().startswith("c(") for line in middle.get_lines())
+    assert any(line.get_label().startswith("$c(") for line in middle.get_lines())
 
 
 def test_trapezoid_results_show_interval_means_so_the_null_mode_is_gone(result71):

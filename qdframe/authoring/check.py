@@ -10,6 +10,15 @@ differences, and reports the worst error per piece; a piece that returns NaN/inf
 array of the wrong shape, or a negative sign amplitude fails too. A min-group's optional
 values-only function must give the values of its pieces (to 1e-9, relative to max(1, |g|)).
 
+Two checks of the model as a whole: `initial_guess()` (and `initial_controls()`) is called
+on 11 points of [0, T] and must return finite arrays of the right shapes; and every set
+F_b(y) must be non-empty along that start and somewhere among the sample points. F_b(y)
+is certainly empty where c(F_b, ψ) + c(F_b, −ψ) < 0 for some ψ (ψ = ±1 for one
+coordinate, 16 directions of S_k for a block of k; sign terms with their band, which
+contains Filippov's set): a set empty at every sample point (`Interval(0, 1) &
+Interval(2, 3)`) or along the start fails; one empty at some sample points only is noted
+(a state constraint, as `disturbed-control`'s U(x) for |x1| > 0.75).
+
 The error of an entry is |∂_fd − ∂| / max(1, |∂|). Where it exceeds the tolerance the
 difference is taken again with a step 100 times smaller (a kink of |·| inside the first
 step is not an error); the smaller of the two errors counts.
@@ -29,6 +38,7 @@ from ..argtypes import integer, positive_float
 from ..errors import InputError, QdframeError
 from ..functional.pieces import VALUES_TOL, values_error
 from ..model import InclusionModel
+from ..registry import plugin_code
 
 
 class ModelCheckError(QdframeError):
@@ -40,9 +50,11 @@ class PieceCheck:
     """The verdict on one group of pieces."""
 
     label: str
-    status: str  # "ok" | "wrong gradient" | "values differ" | "non-finite" | "bad shape" | "negative amplitude" | "error"
+    # "ok" | "wrong gradient" | "values differ" | "non-finite" | "bad shape" | "negative amplitude" | "empty set" | "error"
+    status: str
     worst_error: float  # worst gradient error (0 if not compared)
     detail: str = ""  # where the worst error is, or what went wrong
+    note: str = ""  # shown with an ok status too (a set empty at some sample points)
 
     @property
     def ok(self) -> bool:
@@ -75,7 +87,7 @@ class CheckReport:
             f"  {'piece':<{width}}  {'worst error':>11}  status",
         ]
         for p in self.pieces:
-            status = p.status + (f" — {p.detail}" if p.detail and not p.ok else "")
+            status = p.status + (f" — {p.detail}" if p.detail and not p.ok else "") + (f" — {p.note}" if p.note else "")
             lines.append(f"  {p.label:<{width}}  {p.worst_error:>11.1e}  {status}")
         lines.append(self._agreement() if self.ok else f"{len(self.failures)} piece group(s) failed")
         return "\n".join(lines)
@@ -112,12 +124,18 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
     rng = np.random.default_rng(seed)
     n = model.n_states
     names = list(model.state_names) + list(model.control_names)
-    y = _sample_points(model, samples, rng)
     report = CheckReport(model.name or type(model).__name__, int(samples), int(seed), float(tol))
+    start, guess = _start(model)
+    report.pieces.append(guess)
+    y = _sample_points(model, samples, rng, start)
     checker = _Checker(y, names, tol)
+    with plugin_code(model, "blocks()"):
+        blocks = tuple(model.blocks())
+    sides = _SupportWidth(model, blocks)
 
-    for block in model.blocks():
+    for block in blocks:
         label = f"{block.name or 'block ' + str(block.coords)}"
+        first = len(report.pieces)
         k = block.size
         psi = _sample_psi(k, samples, rng)
         for group in block.max_groups:
@@ -145,11 +163,15 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
             elif term.amplitude < 0:
                 report.pieces.append(PieceCheck(f"{label} sign term {term.name!r} amplitude", "negative amplitude", 0.0,
                                                 f"constant amplitude {term.amplitude} < 0"))
-    surface = model.surface()
+        if all(piece.ok for piece in report.pieces[first:]):  # a failing piece is its own row: the set needs it
+            report.pieces.append(sides.check(f"{label} set", block, checker, start))
+    with plugin_code(model, "surface()"):
+        surface = model.surface()
     if surface is not None:
         states_only = _Checker(y[:, :n], names[:n], tol)
         report.pieces.append(states_only.run("surface e(x)", lambda yy, _ps: surface.function(yy), value_shape=(None,)))
-    cost = model.cost()
+    with plugin_code(model, "cost()"):
+        cost = model.cost()
     if cost is not None:
         for kind, groups in (("max-group", cost.max_groups), ("min-group", cost.min_groups)):
             for index, fn in enumerate(groups):
@@ -165,16 +187,105 @@ def _as_group(pair):
     return value[:, None], grad[:, None, :]
 
 
-def _sample_points(model: InclusionModel, samples: int, rng: np.random.Generator) -> np.ndarray:
-    """Uniform points in a box around x0, the end values, the initial guess and a known solution (±1)."""
+START_POINTS = 11  # the start is checked (and the sample box built) on this many points of [0, T]
+
+
+def _start(model: InclusionModel) -> tuple[np.ndarray | None, PieceCheck]:
+    """The start y = (x, u) of `initial_guess()` and `initial_controls()` on START_POINTS
+    points of [0, T] (None if it is unusable) and the verdict on it: the right shapes
+    ((N, n) for x and z, (N, m) for u) and finite values."""
+    label = "initial_guess()"
+    t = np.linspace(0.0, model.T, START_POINTS)
     n, m = model.n_states, model.n_controls
-    t = np.linspace(0.0, model.T, 11)
-    known = [model.x0[None, :]]
     try:
-        x, _ = model.initial_guess(t)
-        known.append(np.asarray(x, float).reshape(t.size, n))
-    except Exception:  # the check is about pieces; a broken guess shows up elsewhere
-        pass
+        x, z = model.initial_guess(t)
+        u = model.initial_controls(t)
+    except Exception as exc:  # a model's own bug: report it, do not crash the check
+        return None, PieceCheck(label, "error", float("nan"), f"{type(exc).__name__}: {exc}{_where(exc)}")
+    arrays = (("x", x, n, "initial_guess()"), ("z", z, n, "initial_guess()"), ("u", u, m, "initial_controls()"))
+    for what, array, width, method in arrays:
+        array = np.asarray(array, dtype=float)
+        if array.shape != (t.size, width):
+            return None, PieceCheck(label, "bad shape", float("nan"), f"{method} returned {what} of shape {array.shape} "
+                                                                      f"for {t.size} points, expected {(t.size, width)}")
+        finite = np.isfinite(array)
+        if not finite.all():
+            node, column = (int(i) for i in np.argwhere(~finite)[0])
+            names = model.control_names if what == "u" else model.state_names
+            return None, PieceCheck(label, "non-finite", float("nan"),
+                                    f"{method} returned {array[node, column]} for {what}[{names[column]!r}] at "
+                                    f"t = {t[node]:.4g} (a start must be finite, at a free x_i(0) too)")
+    start = np.asarray(x, float) if m == 0 else np.concatenate([np.asarray(x, float), np.asarray(u, float)], axis=1)
+    return start, PieceCheck(label, "ok", 0.0)
+
+
+def _where(exc: BaseException) -> str:
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    return f" at {frames[-1].filename}:{frames[-1].lineno}" if frames else ""
+
+
+class _SupportWidth:
+    """c(F_b(y), ψ) + c(F_b(y), −ψ) per point: < 0 proves F_b(y) empty (sign terms with their band)."""
+
+    def __init__(self, model: InclusionModel, blocks) -> None:
+        from ..functional import Functional
+        from ..grid import Grid
+
+        self.model = model
+        self.functional = Functional(model, Grid(float(model.T), 2), signs="band")  # evaluates sides at any points
+        self.functional.blocks = blocks
+
+    def widths(self, block, y: np.ndarray) -> np.ndarray:
+        """The least width over the directions, per point of y (N,)."""
+        from ..functional.psi import sphere_samples
+
+        directions = np.array([[1.0]]) if block.size == 1 else sphere_samples(block.size, EMPTY_DIRECTIONS)
+        zero = np.zeros((y.shape[0], self.model.n_states))
+        least = np.full(y.shape[0], np.inf)
+        for psi in directions:
+            psi = np.tile(psi, (y.shape[0], 1))
+            width = -self.functional._side(block, y, zero, psi).ell - self.functional._side(block, y, zero, -psi).ell
+            least = np.minimum(least, width)
+        return least
+
+    def check(self, label: str, block, checker: "_Checker", start: np.ndarray | None) -> PieceCheck:
+        try:
+            at_samples = self.widths(block, checker.y)
+            along = self.widths(block, start) if start is not None else np.zeros(0)
+        except Exception as exc:  # a piece that fails is reported on its own row
+            return PieceCheck(label, "error", float("nan"), f"{type(exc).__name__}: {exc}")
+        empty = at_samples < -EMPTY_TOL * (1.0 + np.abs(at_samples))
+        empty_start = along < -EMPTY_TOL * (1.0 + np.abs(along))
+        if empty.all():
+            k = int(np.argmin(at_samples))
+            return PieceCheck(label, "empty set", 0.0, f"F is empty at all {empty.size} sample points"
+                              + (" and along the start" if empty_start.all() else "")
+                              + f", e.g. at {checker._point(k)}: c(F, ψ) + c(F, −ψ) = {at_samples[k]:.3g} < 0")
+        if empty_start.any():
+            k = int(np.argmax(empty_start))
+            t = np.linspace(0.0, self.model.T, START_POINTS)[k]
+            return PieceCheck(label, "empty set", 0.0, f"F is empty along the start (initial_guess()) at t = {t:.4g}, "
+                              f"{checker._point(k, start)}: c(F, ψ) + c(F, −ψ) = {along[k]:.3g} < 0; start where "
+                              "F is non-empty")
+        note = f"empty at {int(empty.sum())} of {empty.size} sample points, e.g. {checker._point(int(np.argmax(empty)))}" \
+            if empty.any() else ""
+        return PieceCheck(label, "ok", 0.0, note=note)
+
+
+EMPTY_DIRECTIONS = 16  # directions of S_k at which a k-block's width is taken
+EMPTY_TOL = 1e-8  # a width below −this·(1 + |width|) is negative: the set is empty
+
+
+def _sample_points(model: InclusionModel, samples: int, rng: np.random.Generator,
+                   start: np.ndarray | None = None) -> np.ndarray:
+    """Uniform points in a box around x0, the end values, the start and a known solution (±1)."""
+    n, m = model.n_states, model.n_controls
+    t = np.linspace(0.0, model.T, START_POINTS)
+    known = [model.x0[None, :]]
+    if start is not None:
+        known.append(start[:, :n])
     try:
         exact = model.exact_solution(t)
         if exact is not None:
@@ -189,10 +300,9 @@ def _sample_points(model: InclusionModel, samples: int, rng: np.random.Generator
     x = rng.uniform(lo - 1.0, hi + 1.0, size=(samples, n))
     if m == 0:
         return x
-    try:
-        u0 = np.asarray(model.initial_controls(t), float).reshape(t.size, m)
-        ulo, uhi = u0.min(axis=0), u0.max(axis=0)
-    except Exception:
+    if start is not None:
+        ulo, uhi = start[:, n:].min(axis=0), start[:, n:].max(axis=0)
+    else:
         ulo, uhi = np.zeros(m), np.zeros(m)
     return np.concatenate([x, rng.uniform(ulo - 1.0, uhi + 1.0, size=(samples, m))], axis=1)
 

@@ -219,25 +219,32 @@ def plot_work_precision(rows: Sequence[dict], path: str | Path, models: Sequence
     plt.close(fig)
 
 
-def _panels(rows: Sequence[dict]):
-    """pyplot, a figure with one panel per model (up to 3 a line), the models, solvers and colors."""
+def _panels(rows: Sequence[dict], height: float = 3.6):
+    """pyplot, a figure with one panel per model (up to 3 a line), the models, solvers and colors;
+    `height` inches per line of panels."""
     plt = _pyplot()
     models = sorted({r["model"] for r in rows})
     solvers = sorted({solver_label(r) for r in rows})
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     columns = min(3, max(1, len(models)))
     lines = math.ceil(len(models) / columns) if models else 1
-    size = (4.6 * columns, 3.6 * lines) if columns > 1 else (6.4, 4.8)
+    size = (4.6 * columns, height * lines) if columns > 1 else (6.4, height + 1.2)
     fig, axes = plt.subplots(lines, columns, figsize=size, squeeze=False, constrained_layout=True)
     return plt, fig, axes, models, solvers, colors
 
 
 def plot_histories(rows: Sequence[dict], path: str | Path) -> None:
     """I against iteration (log scale), one panel per model, one line per solver: its run
-    with the most points."""
-    plt, fig, axes, models, solvers, colors = _panels(rows)
+    with the most points, named in the panel's legend by solver and knob (which run it
+    is). Solvers that report no iteration history (solve_bvp) draw no line and are named
+    once under the figure instead."""
+    from matplotlib.transforms import offset_copy
+
+    every = sorted({solver_label(r) for r in rows})  # one style per solver, as in the work-precision figure
+    plt, fig, axes, models, solvers, colors = _panels(rows, height=5.0)
+    without = set(solvers)
     for ax, model in zip(axes.flat, models):
-        for i, solver in enumerate(solvers):
+        for solver in solvers:
             runs = [r for r in rows if r["model"] == model and solver_label(r) == solver]
             if not runs:
                 continue
@@ -247,13 +254,19 @@ def plot_histories(rows: Sequence[dict], path: str | Path) -> None:
             pairs = [(k, max(v, 1e-300)) for k, v in zip(its, values) if v is not None]
             if pairs:
                 k, v = zip(*pairs)
-                ax.semilogy(k, v, label=solver, **{**_style(i, colors), "marker": None})
+                knob = row.get("knob") or f"N={row.get('nodes')}"
+                ax.semilogy(k, v, label=f"{solver}: {knob}, {row['status']}",
+                            **{**_style(every.index(solver), colors), "marker": None})
+                without.discard(solver)
         ax.set(xlabel="iteration (nosnoc: homotopy step)", ylabel="I", title=model)
         ax.grid(True, alpha=0.3)
+        if ax.get_lines():  # under the panel: which run each line is, off the data
+            below = offset_copy(ax.transAxes, fig=fig, y=-30, units="points")
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=below, ncols=1)
     for ax in list(axes.flat)[len(models):]:
         ax.set_visible(False)
-    handles = [plt.Line2D([], [], label=s, **{**_style(i, colors), "marker": None}) for i, s in enumerate(solvers)]
-    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=min(4, len(solvers)))
+    if without:
+        fig.supxlabel(f"no iteration history, not drawn: {', '.join(sorted(without))}", fontsize=8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from ..errors import InputError, close_names
 from ..quasidifferential import Quasidifferential
 
 if TYPE_CHECKING:
@@ -42,10 +44,53 @@ class Direction:
     stationary: bool | None = None  # a solver's own stationarity verdict; None: deviation ≤ ε decides
 
 
+@dataclass(frozen=True)
+class Rule:
+    """The range of one option: `accepts(value)` and the text of the expected form."""
+
+    text: str
+    accepts: Callable[[Any], bool]
+
+
+def number_rule(low: float | None = None, high: float | None = None, *, above: float | None = None,
+                integer: bool = False, why: str = "") -> Rule:
+    """A finite number (an integer if `integer`) ≥ low, > above, ≤ high; `why` names whose limit it is."""
+    kind = "an integer" if integer else "a number"
+    parts = [f"≥ {low:g}"] if low is not None else []
+    parts += [f"> {above:g}"] if above is not None else []
+    parts += [f"≤ {high:g}" if high < 1e6 else f"≤ {int(high)}"] if high is not None else []
+    text = " ".join([kind] + [" and ".join(parts)] if parts else [kind]) + (f" ({why})" if why else "")
+
+    def accepts(value: Any) -> bool:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            return False
+        if integer and not float(value).is_integer():
+            return False
+        return bool(np.isfinite(value) and (low is None or value >= low) and (above is None or value > above)
+                    and (high is None or value <= high))
+
+    return Rule(text, accepts)
+
+
+class OptionError(InputError):
+    """A direction option outside its range: `owner.key: expected …, got …` (exit status 2)."""
+
+    def __init__(self, owner: str, key: str, expected: str, value: object) -> None:
+        self.key, self.value = key, value
+        super().__init__(f"{owner}.{key}", expected, value)
+
+
 class DirectionSolver(ABC):
-    """Computes a descent direction of the discretized objective at ξ."""
+    """Computes a descent direction of the discretized objective at ξ.
+
+    A dataclass solver's public fields are its options (``--option KEY=VALUE``);
+    `option_rules` gives the range of each (checked by :meth:`check_options` before a
+    solve starts, from the command line and in the dataclass's ``__post_init__``), and a
+    float option without a rule must be finite.
+    """
 
     name: ClassVar[str] = ""
+    option_rules: ClassVar[dict[str, Rule]] = {}
     default_line_search: ClassVar[str] = "golden"  # used when the caller names none
     default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (descent.grid_schedule)
     coarsest_nodes: ClassVar[int] = 11  # the first grid of "auto"
@@ -53,6 +98,22 @@ class DirectionSolver(ABC):
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional`: reset any state kept between iterations."""
+
+    def check_options(self) -> None:
+        """Raise :class:`OptionError` for the first option outside its range (`option_rules`;
+        a float option without a rule must be finite). Subclasses add checks that tie
+        options together (call this first)."""
+        if not dataclasses.is_dataclass(self):
+            return
+        for item in dataclasses.fields(self):
+            if not item.init or item.name.startswith("_"):
+                continue
+            value = getattr(self, item.name)
+            rule = self.option_rules.get(item.name)
+            if rule is not None and not rule.accepts(value):
+                raise OptionError(type(self).__name__, item.name, rule.text, value)
+            if rule is None and isinstance(value, float) and not np.isfinite(value):
+                raise OptionError(type(self).__name__, item.name, "a finite number", value)
 
     @abstractmethod
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
@@ -110,9 +171,9 @@ class MinNormDirection(DirectionSolver):
 def with_options(solver: DirectionSolver, options: dict[str, str]) -> DirectionSolver:
     """A copy of `solver` with public dataclass fields set from text (the CLI's
     ``--option KEY=VALUE``): each value is parsed as the field's current type (bool,
-    int, float or str). An unknown key or a value of the wrong form is an InputError."""
-    from ..errors import InputError
-
+    int, float or str), then the options are checked against their ranges
+    (:meth:`DirectionSolver.check_options`). An unknown key (with the close ones), a value
+    of the wrong form or out of range is an InputError naming the option and its range."""
     if not options:
         return solver
     scalar = (bool, int, float, str, type(None))
@@ -120,9 +181,12 @@ def with_options(solver: DirectionSolver, options: dict[str, str]) -> DirectionS
               if f.init and not f.name.startswith("_") and isinstance(getattr(solver, f.name), scalar)} \
         if dataclasses.is_dataclass(solver) else {}
     values = {}
+    label = getattr(solver, "label", solver.name)
     for key, text in options.items():
         if key not in fields:
-            form = f"KEY=VALUE with KEY one of: {', '.join(fields)}" if fields else "no options (this direction has none)"
+            close = close_names(key, list(fields))
+            form = (f"KEY=VALUE with KEY one of: {', '.join(fields)}" + (f" (did you mean {close[0]}?)" if close else "")
+                    if fields else f"no options (direction {label!r} has none)")
             raise InputError("--option", form, f"{key}={text}")
         current = fields[key]
         kind = type(current) if isinstance(current, (bool, int, float, str)) else None
@@ -138,7 +202,13 @@ def with_options(solver: DirectionSolver, options: dict[str, str]) -> DirectionS
         except ValueError:
             expected = {bool: "true or false", int: "an integer", float: "a number", str: "text"}.get(kind, "a number or none")
             raise InputError("--option", f"{key}=<{expected}>", f"{key}={text}") from None
-    return dataclasses.replace(solver, **values)
+    try:
+        changed = dataclasses.replace(solver, **values)
+        changed.check_options()  # a dataclass without __post_init__ checks here
+    except OptionError as exc:  # the range, as the command line spells the option
+        given = f"{exc.key}={options[exc.key]}" if exc.key in options else ", ".join(f"{k}={v}" for k, v in options.items())
+        raise InputError("--option", f"{exc.key}=<{exc.expected}> for direction {label!r}", given) from None
+    return changed
 
 
 def _number(text: str) -> int | float:

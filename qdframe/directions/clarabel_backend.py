@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .base import number_rule
 from .qp import BlockQP, QPDirection, chunks, require
 
 
@@ -40,6 +41,14 @@ class ClarabelDirection(QPDirection):
     chunk_rows: int = 0
     retry_chunk_rows: int = 10
     retry_tolerances: tuple[float, float, float, float] = (1e-13, 1e-13, 1e-12, 1e-10)
+    option_rules = {  # Clarabel's limits: max_iter is a u32; its tolerances must be positive to mean anything
+        **QPDirection.option_rules,
+        **{name: number_rule(above=0.0, why="a Clarabel tolerance")
+           for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio")},
+        "max_iter": number_rule(1, 2**32 - 1, integer=True, why="Clarabel's limit"),
+        "chunk_rows": number_rule(0, integer=True, why="0: all rows in one QP"),
+        "retry_chunk_rows": number_rule(0, integer=True, why="0: all failed rows in one QP"),
+    }
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from .base import OptionError, number_rule
 from .qp import QPDirection, require
 
 DEFAULT_OPTIONS: dict[str, dict[str, Any]] = {
@@ -45,10 +46,19 @@ class CvxpyDirection(QPDirection):
     chunk_rows: int = 1000
     retry_chunk_rows: int = 10
     solver_options: tuple[tuple[str, Any], ...] = ()
+    option_rules = {
+        **QPDirection.option_rules,
+        "chunk_rows": number_rule(0, integer=True, why="0: all rows in one problem"),
+        "retry_chunk_rows": number_rule(0, integer=True, why="0: all failed rows in one problem"),
+    }
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        require("cvxpy", self.label, "'qdframe[cvxpy]'")
+        cp = require("cvxpy", self.label, "'qdframe[cvxpy]'")
+        installed = sorted(cp.installed_solvers())
+        if self.solver.upper() not in installed:
+            raise OptionError(type(self).__name__, "solver", f"a CVXPY solver installed here: {', '.join(installed)}",
+                              self.solver)
 
     def solve_scaled(self, c: np.ndarray, a: np.ndarray, retry: bool = False) -> tuple[np.ndarray, list[str | None]]:
         cp = require("cvxpy", self.label, "'qdframe[cvxpy]'")

@@ -45,7 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import BackendError
-from .base import Direction, DirectionSolver
+from .base import Direction, DirectionSolver, OptionError, number_rule
 from .kkt import KKTSolver, solve_kkt
 from .sparse_rows import RowBlocks
 
@@ -74,6 +74,18 @@ class GaussNewton(DirectionSolver):
     mu_min: float = 1e-12
     mu_max: float = 1e8
     _state: dict = field(default_factory=dict, repr=False)
+    option_rules = {name: number_rule(above=0.0, why="a damping") for name in ("mu", "mu_min", "mu_max")}
+
+    def __post_init__(self) -> None:
+        self.check_options()
+
+    def check_options(self) -> None:
+        super().check_options()
+        if self.mu_min > self.mu_max:
+            raise OptionError(type(self).__name__, "mu_max", f"a number ≥ mu_min = {self.mu_min:g}", self.mu_max)
+        if not self.mu_min <= self.mu <= self.mu_max:
+            raise OptionError(type(self).__name__, "mu", f"a number in [mu_min, mu_max] = [{self.mu_min:g}, "
+                                                         f"{self.mu_max:g}]", self.mu)
 
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)

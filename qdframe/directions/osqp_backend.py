@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .base import OptionError, number_rule
 from .qp import BlockQP, QPDirection, chunks, require
 
 
@@ -40,10 +41,24 @@ class OsqpDirection(QPDirection):
     polish_refine_iter: int = 20
     chunk_rows: int = 0
     settings: tuple[tuple[str, Any], ...] = ()
+    option_rules = {  # OSQP's own limits (its settings check; max_iter is a C int)
+        **QPDirection.option_rules,
+        "eps_abs": number_rule(0.0, why="OSQP's limit"),
+        "eps_rel": number_rule(0.0, why="OSQP's limit"),
+        "retry_eps": number_rule(above=0.0, why="OSQP's eps_abs and eps_rel of the retry"),
+        "max_iter": number_rule(1, 2**31 - 1, integer=True, why="OSQP's limit"),
+        "polish_refine_iter": number_rule(0, 2**31 - 1, integer=True, why="OSQP's limit"),
+        "chunk_rows": number_rule(0, integer=True, why="0: all rows in one QP"),
+    }
 
     def __post_init__(self) -> None:
         super().__post_init__()
         require("osqp", self.label, "'qdframe[osqp]'")
+
+    def check_options(self) -> None:
+        super().check_options()
+        if self.eps_abs == 0 and self.eps_rel == 0:
+            raise OptionError(type(self).__name__, "eps_abs", "a number > 0 when eps_rel = 0 (OSQP's limit)", 0.0)
 
     def solve_scaled(self, c: np.ndarray, a: np.ndarray, retry: bool = False) -> tuple[np.ndarray, list[str | None]]:
         osqp = require("osqp", self.label, "'qdframe[osqp]'")

@@ -65,7 +65,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import BackendError, InputError
-from .base import Direction, MinNormDirection
+from .base import Direction, MinNormDirection, Rule, number_rule
 from .minnorm import min_norm_point, solve_on_support, validate_batch
 
 if TYPE_CHECKING:
@@ -413,11 +413,12 @@ class QPDirection(MinNormDirection):
 
     name: ClassVar[str] = ""
 
+    option_rules: ClassVar[dict[str, Rule]] = {
+        "feas_tol": number_rule(above=0.0), "gap_tol": number_rule(above=0.0),
+    }
+
     def __post_init__(self) -> None:
-        for name in ("feas_tol", "gap_tol"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
-                raise InputError(name, "a positive finite number", value)
+        self.check_options()
 
     @property
     def label(self) -> str:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BackendError, InputError
+from .base import OptionError
 from .qp import BlockQP, QPDirection, require
 
 DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
@@ -108,7 +109,8 @@ class QpsolversDirection(QPDirection):
                              + (f" ({self.solver} is not offered: {reason})" if reason else ""), self.label)
         per_qp = self.rows_per_qp
         if per_qp is not None and (isinstance(per_qp, bool) or not isinstance(per_qp, int) or per_qp < 0):
-            raise InputError("rows_per_qp", "None (the measured default) or an integer ≥ 0 (0: all rows)", per_qp)
+            raise OptionError(type(self).__name__, "rows_per_qp", "none (the measured default) or an integer ≥ 0 "
+                              "(0: all rows)", per_qp)
 
     @property
     def label(self) -> str:

@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import InputError, ModelOutputError
 from ..grid import Grid
 from ..model import InclusionModel, SetBlock
+from ..registry import plugin_code
 from .assembly import Quasidifferentials
 from .jacobians import DistanceSides, Jacobians
 from .pieces import Pieces
@@ -68,7 +69,8 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
         self.selection_scale = float(selection_scale)
         self.n = model.n_states
         self.m = model.n_controls
-        self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
+        with plugin_code(model, "blocks()"):
+            self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
         # the sign terms in block order, (block index, term), and each one's selection column:
         # terms with the same `switch` callable share one λ (one surface, one Filippov selection)
         self.sign_terms = [] if signs == "band" else [
@@ -81,8 +83,10 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
         self.dim = 2 * self.n + self.m + self.p
         self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
         self.width = self.args + self.p  # width of the sides' gradients: (x, u, λ)
-        self.surface = model.surface()
-        self.cost = model.cost()
+        with plugin_code(model, "surface()"):
+            self.surface = model.surface()
+        with plugin_code(model, "cost()"):
+            self.cost = model.cost()
         self.penalty = float(self.cost.weight) if self.cost is not None else 1.0
         self.end = np.asarray(model.end_indices, dtype=int)  # J: x_j(T) = xT_j
         self.periodic = np.asarray(model.periodic, dtype=int)  # P: x_i(T) = x_i(0)
@@ -141,11 +145,23 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
 
     def initial_point(self) -> np.ndarray:
         t = self.grid.t
-        x, z = self.model.initial_guess(t)
-        u = self.model.initial_controls(t)
+        with plugin_code(self.model, "initial_guess()"):
+            x, z = self.model.initial_guess(t)
+        with plugin_code(self.model, "initial_controls()"):
+            u = self.model.initial_controls(t)
         for label, array, width in (("x", x, self.n), ("z", z, self.n), ("u", u, self.m)):
             if np.shape(array) != (t.size, width):
                 raise ModelOutputError(
                     f"model {self.model.name!r}: initial {label} has shape {np.shape(array)}, expected {(t.size, width)}"
                 )
+            finite = np.isfinite(np.asarray(array, dtype=float))
+            if not finite.all():
+                node, column = (int(i) for i in np.argwhere(~finite)[0])
+                method = "initial_controls()" if label == "u" else "initial_guess()"
+                names = self.model.control_names if label == "u" else self.model.state_names
+                raise ModelOutputError(
+                    f"model {self.model.name!r}: {method} returned a non-finite {label} "
+                    f"({names[column]}{'′' if label == 'z' else ''} = {np.asarray(array, float)[node, column]}) at node "
+                    f"{node} (t = {t[node]:.6g}); a starting guess must be finite everywhere (a free x_i(0) too)",
+                    label=f"initial {label}", node=node, nonfinite=True)
         return self.pack(np.asarray(x, float), np.asarray(z, float), np.asarray(u, float))

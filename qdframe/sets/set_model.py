@@ -9,7 +9,12 @@ import sympy as sp
 
 from ..errors import InputError
 from ..model import Cost, InclusionModel, SetBlock, Surface
+from ..registry import plugin_code
 from .compiler import Compiled, compile_sets
+
+
+NUMERIC_ON_SYMBOL = ("loop of ufunc does not support argument", "Cannot convert expression to float")
+"""What NumPy's ufuncs and the math module say when given a SymPy symbol (np.sin(θ), math.exp(θ))."""
 
 
 def _names(value: Any) -> tuple[str, ...]:
@@ -79,11 +84,22 @@ class SetModel(InclusionModel):
         if cached is None:
             states, controls = cls.symbols()
             args = states + controls
-            cached = compile_sets(
-                self.sets(*args), states, controls,
-                surface=self.surface_equations(*args), cost=self.running_cost(*args),
-                weight=float(cls.penalty), model=cls.name or cls.__name__,
-            )
+            with plugin_code(self, "sets()"):
+                try:
+                    sets = self.sets(*args)
+                except TypeError as exc:  # np.sin(θ), math.exp(θ): functions of numbers, given a SymPy symbol
+                    if not any(text in str(exc) for text in NUMERIC_ON_SYMBOL):
+                        raise
+                    raise InputError(f"{cls.__name__}.sets()", "formulas of SymPy functions of the symbols "
+                                     "(from sympy import sin, cos, exp; Abs, Min, Max, sqrt from qdframe.sets): "
+                                     "NumPy's and math's functions take numbers, not symbols",
+                                     f"{type(exc).__name__}: {exc}") from exc
+            with plugin_code(self, "surface_equations()"):
+                surface = self.surface_equations(*args)
+            with plugin_code(self, "running_cost()"):
+                cost = self.running_cost(*args)
+            cached = compile_sets(sets, states, controls, surface=surface, cost=cost,
+                                  weight=float(cls.penalty), model=cls.name or cls.__name__)
             cls._compiled_sets = cached  # type: ignore[attr-defined]
         return cached
 
