@@ -326,7 +326,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
     result.error_estimate = found.value
     result.certificate = found.certificate if found.value is not None else None
     result.accuracy = target
-    solved = result.status == Status.SOLVED
+    solved = result.status == Status.SOLVED  # the discrete problem: every pointwise check passes
     result.switch_times = switches.switch_times(functional, adaptive.iterate(functional, result)) if solved \
         else np.zeros(0)
     note = outcome.note
