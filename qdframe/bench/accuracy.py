@@ -210,7 +210,8 @@ def table(rows: Sequence[AccuracyRow]) -> str:
                  "yes" if r.met else "**no**", _offset(r)]
         for u in r.uniform:
             if u.reached:
-                cells += [str(u.nodes) + ("" if u.status == "solved" else f" ({u.status})"), f"{u.seconds:.2f}"]
+                cells += [str(u.nodes) + ("" if u.status in ("solved", "uncertified") else f" ({u.status})"),
+                          f"{u.seconds:.2f}"]
             else:
                 cells += [f"not reached ({u.tried}, {_error(u.error)})", "—"]
         nodes_ratio, time_ratio = r.ratios(schemes[0])

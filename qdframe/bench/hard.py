@@ -125,7 +125,7 @@ class _Band(InclusionModel):
 def on_the_boundary() -> HardCase:
     """A start on the boundary of F that solves the problem: 0 iterations, solved."""
     outcome = [solve(_Band(), nodes=51, direction=d) for d in ("native", "gauss-newton")]
-    ok = all(r.status == "solved" and r.iterations == 0 and r.I <= 1e-25 for r in outcome)
+    ok = all(r.converged and r.iterations == 0 and r.I <= 1e-25 for r in outcome)
     return HardCase("z on the boundary of F, a solving start", ", ".join(
         f"{r.direction}: {r.status} after {r.iterations}, I = {r.I:.1e}" for r in outcome), ok)
 
@@ -134,7 +134,7 @@ def unreachable_end() -> HardCase:
     """paper-7.2 with x(1) = (5, 5), unreachable since |x'| ≤ 1: never `solved`."""
     result = solve(load_model("paper-7.2", end_values=[5.0, 5.0]), nodes=21, max_iter=60)
     return HardCase("unreachable end point (7.2, xT = 5,5)", f"{result.status}, I = {result.I:.2f}",
-                    result.status != "solved" and result.I > 1.0)
+                    not result.converged and result.I > 1.0)
 
 
 class _Spread(InclusionModel):
@@ -160,7 +160,7 @@ def many_nodes() -> HardCase:
     """N = 10^5 nodes with gauss-newton."""
     result = solve(_Spread(), nodes=100_001, estimate=False)
     return HardCase("N = 10^5", f"{result.status} in {result.iterations} iterations, I = {result.I:.1e}",
-                    result.status == "solved")
+                    result.converged)
 
 
 class _Oscillator(InclusionModel):
@@ -192,7 +192,7 @@ def long_horizon() -> HardCase:
     """T = 100 (about 16 periods) with N = 4001."""
     result = solve(_Oscillator(), nodes=4001)
     return HardCase("long horizon T = 100", f"{result.status} in {result.iterations} iterations, "
-                    f"I = {result.I:.1e}, boundary error {result.boundary_error:.1e}", result.status == "solved")
+                    f"I = {result.I:.1e}, boundary error {result.boundary_error:.1e}", result.converged)
 
 
 class _Stiff(InclusionModel):
@@ -216,7 +216,7 @@ def stiff() -> HardCase:
     """Coefficient 1000 against a disturbance of 1, N = 2001."""
     result = solve(_Stiff(), nodes=2001)
     return HardCase("stiff coefficient 1e3", f"{result.status} in {result.iterations} iterations, I = {result.I:.1e}",
-                    result.status == "solved")
+                    result.converged)
 
 
 def determinism() -> HardCase:
@@ -228,11 +228,12 @@ def determinism() -> HardCase:
 
 
 def friction_suite() -> HardCase:
-    """The stick/slide/switch suite at N = 101 from the default start: solved, strict residual ≤ 1e-8."""
+    """The stick/slide/switch suite at N = 101 from the default start: the discrete problem solved
+    (solved or uncertified: N = 101 is not meant to meet 1e-6), strict residual ≤ 1e-8."""
     from .friction import SUITE, run_suite
 
     rows = run_suite(SUITE, (101,))
-    failed = [r.model for r in rows if r.status != "solved"]
+    failed = [r.model for r in rows if r.status not in ("solved", "uncertified")]
     worst = max(r.residual for r in rows)
     return HardCase("stick/slide/switch suite (N = 101)",
                     f"{len(rows) - len(failed)}/{len(rows)} solved, strict residual ≤ {worst:.1e}"
