@@ -22,7 +22,9 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   factorization of a :class:`KKTSolver` and reused for every later system of the same
   shape and constraint pattern (the active-set loop's refactors, the later iterations of
   one solve): each reuse is a numerical factorization only. A reused order whose factors
-  grow past `REANALYSE_GROWTH` times the analysed ones is computed afresh. (gauss-newton
+  grow past `REANALYSE_GROWTH` times the analysed ones (SuperLU's pivots left the diagonal
+  it was analysed for) is not reused again in that solve: every later system is analysed
+  afresh, which costs a COLAMD per system and not a fill-in 10× the fresh one. (gauss-newton
   keeps C's pattern through its guesses: a cost piece that leaves the tie keeps its row,
   with zero coefficients.)
 * **One column per panel.** SuperLU's panels (`PANEL_SIZE` columns updated together, a
@@ -60,6 +62,7 @@ class KKTSolver:
         self._rows: np.ndarray | None = None  # position of each row of K in the matched matrix
         self._order: np.ndarray | None = None  # the column (and row) order of the matched matrix
         self._factor_nnz = 0
+        self._reuse = True  # False once a reused order filled in past REANALYSE_GROWTH
         self.analyses = 0  # how many fill-reducing orders were computed (for tests and benchmarks)
         self.factorizations = 0
 
@@ -76,14 +79,16 @@ class KKTSolver:
         kkt = _assemble(hessian, constraints, rows, order, soft)
         if order is None:  # the analysis: SuperLU's COLAMD on the matched matrix, kept for later systems
             factor = _factor(kkt, "COLAMD")
-            self._order = np.argsort(factor.perm_c)
+            self._order = np.argsort(factor.perm_c) if self._reuse else None
             self._factor_nnz = factor.nnz  # L + U (not .L, .U: those build copies)
             self.analyses += 1
             solution = factor.solve(right[rows])
         else:
             factor = _factor(kkt, "NATURAL")
             if factor.nnz > REANALYSE_GROWTH * self._factor_nnz:
-                self._order = None  # the pattern moved away from the analysed one: a new order next time
+                # the pivots left the analysed order (the values, not the pattern, moved): reusing it
+                # again would fill in as much, so every later system of this solve is analysed afresh
+                self._order, self._reuse = None, False
             solution = np.empty(size + count)
             solution[order] = factor.solve(right[rows[order]])
         self.factorizations += 1

@@ -105,3 +105,23 @@ def test_gauss_newton_system_matches_superlu(name):
     theirs = np.linalg.norm(kkt @ reference - right) / np.linalg.norm(right)
     assert ours <= max(10 * theirs, 1e-14)
     assert np.allclose(E @ d, 0.0, atol=1e-12 * np.abs(d).max())
+
+
+def test_an_order_that_filled_in_is_not_reused_again():
+    """Issue 31's cliff: a reused order whose factors outgrew the analysed ones (SuperLU's
+    pivots left its diagonal) was recomputed once and then reused again, filling in 10×
+    every other iteration. After one growth, every later system of the solve is analysed afresh."""
+    rng = np.random.default_rng(3)
+    hessian, constraints, gradient, rhs = chain_system(rng, 40, singular=True)
+    solver = KKTSolver()
+    solver.solve(hessian, constraints, gradient, rhs)
+    assert solver.analyses == 1
+    solver.solve(hessian, constraints, gradient, rhs)
+    assert solver.analyses == 1  # reused
+    solver._factor_nnz = 1  # as if the analysed factors were tiny: the next reuse 'grows'
+    d, nu = solver.solve(hessian, constraints, gradient, rhs)
+    expected = dense_kkt(hessian, constraints, gradient, rhs)
+    assert np.allclose(d, expected[0], atol=1e-8) and np.allclose(nu, expected[1], atol=1e-8)
+    for _ in range(3):
+        solver.solve(hessian, constraints, gradient, rhs)
+    assert solver.analyses == 4  # each of the three analysed afresh
