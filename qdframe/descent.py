@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from . import adaptive, certify, switches
+from . import adaptive, certify, estimates, switches
 from .directions.base import DirectionSolver
 from .diagnosis import unmet_conditions
 from .errors import BackendError, InputError, ModelOutputError
@@ -400,15 +400,45 @@ def grid_schedule(nodes: int, continuation: Sequence[int] | str, coarsest: int =
 
 
 def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
-    """The previous grid's x, z, u linearly interpolated onto `functional`'s grid."""
+    """The previous grid's x, z, u and λ on `functional`'s grid: by the previous scheme's own
+    interpolants where its grid is known (x by the polynomial through each interval's
+    points, z, u and λ by the scheme's rule for x′, λ clipped to [−1, 1]; a switch pinned
+    on a mesh point is not smeared across it), else linearly."""
     t = functional.grid.t
+    source = _source_grid(previous)
+    if source is None:
+        def on_grid(values: np.ndarray) -> np.ndarray:
+            return np.stack([np.interp(t, previous.t, column) for column in values.T], axis=1)
+        position = velocity = on_grid
+    else:
+        def position(values: np.ndarray) -> np.ndarray:
+            return estimates.dense(source, values, t)
 
-    def on_grid(values: np.ndarray) -> np.ndarray:
-        return np.stack([np.interp(t, previous.t, column) for column in values.T], axis=1)
+        def velocity(values: np.ndarray) -> np.ndarray:
+            # at a point shared with the source's mesh, the value there (left-continuous like the rule)
+            out = source.scheme.velocity(source.t, source.mesh, values, t)
+            same = np.searchsorted(source.t, t).clip(0, source.t.size - 1)
+            exact = source.t[same] == t
+            out[exact] = values[same[exact]]
+            return out
 
-    u = None if previous.u is None else on_grid(previous.u)
-    selections = None if previous.selections is None else on_grid(previous.selections)  # None: the band's
-    return functional.pack(on_grid(previous.x), on_grid(previous.z), u, selections)
+    u = None if previous.u is None else velocity(previous.u)
+    selections = None if previous.selections is None else np.clip(velocity(previous.selections), -1.0, 1.0)
+    return functional.pack(position(previous.x), velocity(previous.z), u, selections)  # λ None: the band's
+
+
+def _source_grid(previous: SolveResult) -> Grid | None:
+    """The grid a result was solved on, where its points say it (its scheme's layout on the
+    mesh of every `stages`-th point); None for anything else (a plain t)."""
+    name = getattr(previous, "options", {}).get("scheme")
+    if name is None:
+        return None
+    try:
+        scheme = make_scheme(name)
+        grid = Grid.from_mesh(np.asarray(previous.t)[:: scheme.stages], scheme)
+    except Exception:  # noqa: BLE001 - not a layout of that scheme
+        return None
+    return grid if grid.t.shape == np.shape(previous.t) and np.allclose(grid.t, previous.t, rtol=0, atol=1e-12) else None
 
 
 def _iterate(functional: Functional, xi: np.ndarray) -> SimpleNamespace:
@@ -692,6 +722,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         control_names=tuple(model.control_names),
         set_bounds=bounds,
         options={
+            "scheme": functional.grid.scheme.name,
             "max_iter": options.max_iter,
             "tol": options.tol,
             "delta": options.delta,

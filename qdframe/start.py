@@ -33,6 +33,7 @@ SIMULATION_SECONDS = 20.0  # a shooting search stops after this long, with what 
 TURN_DENSITY = 16 / np.pi  # a first mesh from the motion: intervals per radian its velocity turns …
 MIN_PER_PIECE = 4  # … and at least this many per piece of constant mode
 TURN_SAMPLES = 257  # points per piece where the turning is measured
+MODE_TIME_TOL = 1e-9  # relative to T: a point this near a mode change is sampled in the mode before it
 
 
 class Starts:
@@ -174,7 +175,9 @@ def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
             B[:, exact.blocks[b].coords[0], k] += term.sense * exact._amplitude_values(exact.blocks[b], term, y)
         ds = np.stack([exact._switch(exact.blocks[b], term, y)[1][:, :n] for b, term in exact.selection_terms], axis=1)
         starts = np.array([start for start, _ in motion.modes])
-        which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(motion.modes) - 1)
+        # the mode before a change at t_k (to MODE_TIME_TOL): z_k belongs to the interval that ends at t_k
+        near = MODE_TIME_TOL * max(1.0, float(t[-1]))
+        which = np.clip(np.searchsorted(starts, t - near, side="left") - 1, 0, len(motion.modes) - 1)
         for index in np.unique(which):
             nodes = np.flatnonzero(which == index)
             mode = np.array(motion.modes[index][1], dtype=float)
