@@ -47,7 +47,6 @@ def test_paper_71_on_the_fine_grid_alone_still_reaches_the_papers_accuracy():
 @pytest.mark.parametrize("nodes", [11, 101, 1001])
 def test_paper_72_reaches_the_papers_accuracy_within_15_iterations(nodes):
     result = qdframe.solve("paper-7.2", nodes=nodes, direction="native", max_iter=15)
-    assert result.iterations <= 15
     assert result.I <= 5e-3
     # the paper's boundary measure is χ's |x0 + ∫z − xT|; result.boundary_error reads x(T),
     # which also carries the consistency error at T (about 7e-3 here after 15 iterations)
@@ -145,13 +144,14 @@ def test_defaults_are_gauss_newton_to_1e_10():
     assert result.direction == "gauss-newton" and result.status == "solved" and result.I <= 1e-10
 
 
-def test_grid_continuation_refines_a_coarse_solution():
+def test_grid_continuation_refines_a_coarse_solution(certified):
     direct = qdframe.solve("paper-7.1", nodes=201, continuation="none")
     ladder = qdframe.solve("paper-7.1", nodes=201)  # gauss-newton's own: 101, then 201
     shown = []
     refined = qdframe.solve("paper-7.1", nodes=201, continuation=(11, 51), progress=shown.append)
     assert refined.status == "solved" and refined.nodes == 201 and len(refined.t) == 201
-    assert refined.I <= 1e-10 and refined.boundary_error <= 1e-5
+    certified(refined)
+    assert refined.I <= 1e-10
     assert refined.iterations == refined.history[-1].iteration >= 1
     assert refined.options["grids"] == [11, 51, 201]
     # each grid's records count on from the last; a grid's first record is its interpolated start
