@@ -174,7 +174,7 @@ def test_the_papers_method_runs_on_a_nonuniform_mesh():
     paper-7.1 and reach the paper's accuracy; gauss-newton solves it."""
     tau = np.sort(np.concatenate([np.linspace(0, 1, 31), [0.013, 0.52, 0.977]]))
     native, osqp = (qdframe.solve("paper-7.1", mesh=tau, direction=d, continuation="none") for d in ("native", "osqp"))
-    assert native.iterations == osqp.iterations and native.objective == pytest.approx(osqp.objective, rel=1e-6)
+    assert (native.iterations, native.objective) == (osqp.iterations, osqp.objective)  # identical runs (README)
     assert native.objective <= 1e-3 and native.solution_error <= 1e-3
     newton = qdframe.solve("paper-7.1", mesh=tau)
     assert newton.solved and np.array_equal(newton.t, tau) and newton.solution_error <= 1e-12
