@@ -7,13 +7,43 @@ import numpy as np
 import pytest
 
 import qdframe
+from qdframe.bench.accuracy import exact_models
 from qdframe.errors import InputError
 from qdframe.grid import Grid
 
-SUITE = ("block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
-         "two-surface-sliding", "coulomb-block")
-SMOOTH = ("slide-on-line", "sliding-mode", "paper-7.1")  # exact solutions without a switch
-EXACT = SUITE + ("paper-7.1", "sliding-mode")
+EXACT = exact_models()  # every registered model with an exact solution, the plugin's too
+RESIDUAL_TOL = 1e-8  # solve's default: the pointwise checks of `solved`, relative to max(1, max|x|)
+ESTIMATE_FACTOR = 1.3  # the estimate 2.5·max|x_h − x_{h/2}| is 1.25× a first-order error (measured 1.245–1.263)
+
+# Known failures of the promise, with what was measured (`qdframe.solve(name, nodes=N)` /
+# `accuracy=1e-6` on the 2-core machine); README.md, "Known failures", lists them too.
+KNOWN = {
+    ("stick-slip-oscillator", 101): "solved with error estimate 2.81 below its true error 4.51 "
+                                    "(implicit Euler damps the 24 reversals); issue 30",
+    ("stick-slip-oscillator", 1001): "solved without an error estimate (its solve on the bisected 2001-point grid "
+                                     "ends max_iter), true error 2.97; issue 30",
+    ("stick-slip-oscillator", "accuracy"): "accuracy=1e-6 ends stationary on 41 points without an estimate, "
+                                           "true error 4.69; issue 31",
+}
+
+
+NOT_RUN = {
+    # 54–63 s of the suite for a run that makes no claim: not solved (max_iter after 500
+    # iterations, true error 1.13; issue 31), so its estimate is None as it must be
+    ("stick-slip-oscillator", 10001): "a minute-long solve that ends max_iter",
+}
+
+
+def _cases(settings):
+    return [pytest.param(name, setting, marks=pytest.mark.xfail(strict=True, reason=KNOWN[name, setting]))
+            if (name, setting) in KNOWN else (name, setting)
+            for name in EXACT for setting in settings if (name, setting) not in NOT_RUN]
+
+
+def _known_switch_times(model) -> np.ndarray:
+    """The model's switch times; a model that names none has none (paper-7.1 has no sign
+    term, sliding-mode slides from t = 0: tests/bench/test_filippov_reference.py)."""
+    return np.asarray(getattr(type(model), "switch_times", ()), dtype=float)
 
 
 # ----------------------------------------------------------------------- nonuniform meshes
@@ -65,7 +95,7 @@ def test_solved_reports_every_check_against_a_tolerance_scaled_to_the_states():
     assert all(c["value"] <= c["tol"] for c in result.checks.values())
     worst = max(result.checks, key=lambda k: result.checks[k]["value"] / result.checks[k]["tol"])
     assert result.binding_check == worst
-    assert result.x[0] == pytest.approx(result.x[0]) and np.array_equal(result.x[0], [0.0, 2.0])
+    assert np.array_equal(result.x[0], qdframe.load_model("block-stop-stick").x0)  # x(0) = x0 exactly
 
 
 def test_the_boundary_error_is_read_from_x_itself():
@@ -75,15 +105,25 @@ def test_the_boundary_error_is_read_from_x_itself():
 
 
 # ---------------------------------------------------------------------- error estimates
-@pytest.mark.parametrize("nodes", [101, 1001, 10001])
-@pytest.mark.parametrize("name", EXACT)
+def test_the_exact_models_are_all_found():
+    """exact_models() finds the built-in ones and the plugin's (a model missing here would
+    silently leave every test below)."""
+    assert {"block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
+            "two-surface-sliding", "stick-slip-oscillator", "paper-7.1", "coulomb-block", "sliding-mode"} <= set(EXACT)
+
+
+@pytest.mark.parametrize("name, nodes", _cases([101, 1001, 10001]))
 def test_a_solved_result_has_its_true_error_within_its_estimate(name, nodes):
+    """README: at N = 101, 1001 and 10001 with the default scheme, a `solved` result's true
+    error is within its estimate, and the estimate is 1.25 times a first-order error (the
+    bound here: 1.3×), or, where the scheme is exact at the points (paper-7.1's trapezoid,
+    two-surface-sliding's implicit Euler), within the pointwise tolerance."""
     result = qdframe.solve(name, nodes=nodes)
     assert result.solved, result.message
-    assert result.error_estimate is not None
+    assert result.error_estimate is not None, result.message
     assert result.solution_error <= result.error_estimate
-    if name in SMOOTH and result.solution_error > 1e-12:  # above rounding: within a factor 3
-        assert result.error_estimate <= 3 * result.solution_error
+    floor = RESIDUAL_TOL * max(1.0, float(np.max(np.abs(result.x))))
+    assert result.error_estimate <= ESTIMATE_FACTOR * result.solution_error + floor
 
 
 def test_no_estimate_when_skipped_or_not_solved():
@@ -93,23 +133,19 @@ def test_no_estimate_when_skipped_or_not_solved():
 
 
 # ---------------------------------------------------------------- switches and accuracy
-@pytest.mark.parametrize("name", SUITE)
-def test_accuracy_locates_the_switches_and_meets_the_target_with_few_nodes(name):
+@pytest.mark.parametrize("name, setting", _cases(["accuracy"]))
+def test_accuracy_locates_the_switches_and_meets_the_target_with_few_nodes(name, setting):
+    """README: with accuracy=1e-6 every exact problem ends solved with true error ≤ 1e-6 (and
+    within its estimate) on fewer than 200 points, the switch times within 1e-8."""
     model = qdframe.load_model(name)
     result = qdframe.solve(model, accuracy=1e-6)
-    assert result.solved and result.error_estimate <= 1e-6, result.message
-    assert result.solution_error <= 1e-6
+    assert result.solved, result.message
+    assert result.solution_error <= result.error_estimate <= 1e-6
     assert result.nodes < 200
-    exact = np.asarray(type(model).switch_times)
-    assert result.switch_times.size == exact.size
+    exact = _known_switch_times(model)
+    assert result.switch_times.size == exact.size, result.switch_times
     assert np.max(np.abs(result.switch_times - exact), initial=0.0) <= 1e-8
     assert "error estimate" in result.message and result.options["accuracy"] == 1e-6
-
-
-@pytest.mark.parametrize("name", ["paper-7.1", "sliding-mode"])
-def test_accuracy_on_smooth_problems(name):
-    result = qdframe.solve(name, accuracy=1e-6)
-    assert result.solved and result.solution_error <= 1e-6 <= 1e-6 and result.error_estimate <= 1e-6
 
 
 def test_an_unmet_accuracy_says_why():
@@ -138,7 +174,7 @@ def test_the_papers_method_runs_on_a_nonuniform_mesh():
     paper-7.1 and reach the paper's accuracy; gauss-newton solves it."""
     tau = np.sort(np.concatenate([np.linspace(0, 1, 31), [0.013, 0.52, 0.977]]))
     native, osqp = (qdframe.solve("paper-7.1", mesh=tau, direction=d, continuation="none") for d in ("native", "osqp"))
-    assert native.iterations == osqp.iterations and native.objective == pytest.approx(osqp.objective, rel=1e-6)
+    assert (native.iterations, native.objective) == (osqp.iterations, osqp.objective)  # identical runs (README)
     assert native.objective <= 1e-3 and native.solution_error <= 1e-3
     newton = qdframe.solve("paper-7.1", mesh=tau)
     assert newton.solved and np.array_equal(newton.t, tau) and newton.solution_error <= 1e-12

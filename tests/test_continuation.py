@@ -105,10 +105,12 @@ def test_an_iterate_round_trips_through_interpolation_on_its_own_grid():
     assert np.array_equal(_interpolate(functional, _iterate(functional, xi)), xi)
 
 
-@pytest.mark.parametrize("nodes, grids, per_grid", [(101, [101], [2]), (1001, [101, 301, 1001], [2, 0, 0])])
-def test_gauss_newton_solves_paper_71_as_before(nodes, grids, per_grid):
-    """Solved in 2 iterations, all on 101 nodes (3 while Clarabel solved the step QP to 1e-12;
-    the active-set step is exact)."""
+@pytest.mark.parametrize("nodes, grids", [(101, [101]), (1001, [101, 301, 1001])])
+def test_gauss_newton_solves_paper_71_on_its_first_grid(nodes, grids, certified):
+    """7.1's solution x1 = 0, x2 = t is linear: solved on 101 nodes, its interpolation solves
+    every finer grid, which therefore takes no iteration (however many the first needed)."""
     result = qdframe.solve("paper-7.1", nodes=nodes)
-    assert result.status == "solved" and result.iterations == 2 and result.message == ""
-    assert result.options["grids"] == grids and result.options["iterations_per_grid"] == per_grid
+    certified(result)
+    assert result.message == "" and result.options["grids"] == grids
+    first, *finer = result.options["iterations_per_grid"]
+    assert first == result.iterations >= 1 and finer == [0] * (len(grids) - 1)

@@ -47,7 +47,6 @@ def test_paper_71_on_the_fine_grid_alone_still_reaches_the_papers_accuracy():
 @pytest.mark.parametrize("nodes", [11, 101, 1001])
 def test_paper_72_reaches_the_papers_accuracy_within_15_iterations(nodes):
     result = qdframe.solve("paper-7.2", nodes=nodes, direction="native", max_iter=15)
-    assert result.iterations <= 15
     assert result.I <= 5e-3
     # the paper's boundary measure is χ's |x0 + ∫z − xT|; result.boundary_error reads x(T),
     # which also carries the consistency error at T (about 7e-3 here after 15 iterations)
@@ -145,13 +144,14 @@ def test_defaults_are_gauss_newton_to_1e_10():
     assert result.direction == "gauss-newton" and result.status == "solved" and result.I <= 1e-10
 
 
-def test_grid_continuation_refines_a_coarse_solution():
+def test_grid_continuation_refines_a_coarse_solution(certified):
     direct = qdframe.solve("paper-7.1", nodes=201, continuation="none")
     ladder = qdframe.solve("paper-7.1", nodes=201)  # gauss-newton's own: 101, then 201
     shown = []
     refined = qdframe.solve("paper-7.1", nodes=201, continuation=(11, 51), progress=shown.append)
     assert refined.status == "solved" and refined.nodes == 201 and len(refined.t) == 201
-    assert refined.I <= 1e-10 and refined.boundary_error <= 1e-5
+    certified(refined)
+    assert refined.I <= 1e-10
     assert refined.iterations == refined.history[-1].iteration >= 1
     assert refined.options["grids"] == [11, 51, 201]
     # each grid's records count on from the last; a grid's first record is its interpolated start
@@ -223,29 +223,32 @@ def test_the_descent_runs_blas_on_one_thread():
 def test_the_starts_evaluation_is_timed_in_its_own_record(monkeypatch):
     # record k's time_s is when iterate k's terms were known, so time_s[k] − time_s[k − 1] is
     # iteration k alone (`qdframe bench scale` takes these differences): a slow start's
-    # evaluation shows in record 0, not in iteration 1
-    import time
+    # evaluation shows in record 0, not in iteration 1. The clock is faked: it moves only when
+    # the terms are evaluated, 100 s for the start's and 1 s for every later one
+    import types
 
+    import qdframe.descent
     from qdframe.descent import DescentOptions, descend, make_line_search
 
     model = qdframe.load_model("paper-7.1")
     functional = Functional(model, Grid(model.T, 11, model.default_scheme))
     start = functional.initial_point()
-    terms, calls = functional.terms, []
+    terms, calls, now = functional.terms, [], [0.0]
 
     def slow_at_the_start(xi):
-        if not calls:  # the descent's first evaluation: the start's
-            time.sleep(0.5)
+        now[0] += 1.0 if calls else 100.0  # the descent's first evaluation is the start's
         calls.append(1)
         return terms(xi)
 
+    monkeypatch.setattr(qdframe.descent, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
     monkeypatch.setattr(functional, "terms", slow_at_the_start)
     result = descend(functional, make_direction("gauss-newton"), make_line_search("armijo"),
                      DescentOptions(max_iter=3), None, start)
     times = [record.time_s for record in result.history]
-    assert len(times) >= 2 and times[0] >= 0.5
-    assert all(later >= earlier for earlier, later in zip(times, times[1:]))
-    assert times[1] - times[0] < 0.5
+    assert len(times) >= 2 and times[0] == 100.0
+    # each later record: the evaluations of its own iteration alone (at least the new iterate's)
+    assert all(1.0 <= later - earlier < 100.0 for earlier, later in zip(times, times[1:]))
+    assert times[-1] <= result.wall_time_s <= now[0]
 
 
 class _ShortSteps(qdframe.directions.gauss_newton.GaussNewton):

@@ -1,7 +1,8 @@
 """The quasidifferential [A_k, B_k] of the functional at every node (paper Section 4).
 
 In the L² metric: the integrand's quasidifferential, formulas (4.5) (−max <f, ψ*> is
-concave: a superdifferential), (4.555) (−min g is convex: a subdifferential) and (4.6)
+concave: a superdifferential; in a block of k ≥ 2 coordinates, where ψ* exposes a face of
+several vertices, the one gradient of the λ-weighted vertices, :meth:`Pieces._faces`), (4.555) (−min g is convex: a subdifferential) and (4.6)
 (the surface), plus the discrete gradient of the coupled terms χ and υ divided by w_k
 (formulas (4.44), (4.55)), and σ's natural map. Pieces within δ of their group's
 extreme are active (Section 6). x(t_0) = x0, where given, is not an unknown: the sets
@@ -55,9 +56,15 @@ class Quasidifferentials:
             for part in side.min_parts:  # −min g is convex: subdifferential (4.555)
                 mask = _delta_active(-part.values, delta, positive)
                 sub_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
-            for part in side.max_parts:  # −max <f, ψ*> is concave: superdifferential (4.5)
-                mask = _delta_active(part.values, delta, positive)
-                sup_groups.append((self._embed(-h[:, None, None] * part.grads), mask))
+            for index, part in enumerate(side.max_parts):  # −max <f, ψ*> is concave: superdifferential (4.5)
+                mask, grads = _delta_active(part.values, delta, positive), part.grads
+                if side.faces is not None:  # k ≥ 2, a face of several vertices: h is smooth there
+                    at, weights = side.faces
+                    grads, mask = grads.copy(), mask.copy()
+                    grads[at, 0] = np.einsum("nq,nqd->nd", weights[index], part.grads[at])
+                    mask[at] = False
+                    mask[at, 0] = True
+                sup_groups.append((self._embed(-h[:, None, None] * grads), mask))
             for sign in side.sign_parts:  # −κ·a(y) − smooth in s: by the sign of κ
                 smooth -= self._embed(h[:, None] * sign.amplitude[:, None] * sign.kappa_grad)
                 for piece in sign.groups:

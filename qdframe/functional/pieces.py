@@ -21,6 +21,8 @@ from ..errors import ModelOutputError
 from ..model import SetBlock
 from .psi import maximize_on_sphere, sphere_samples
 
+FACE_TOL = 1e-7  # a max-group's vertex is on the face ψ* exposes: <f_q, ψ*> within this (relative) of the maximum
+FACE_STEP = 1e-6  # the central difference of a min-group's support along S_k at ψ*
 VALUES_TOL = 1e-9  # a min-group's `values` agrees with its pieces' values to this, relative to max(1, |g|)
 VALUES_CHECK_NODES = 64  # nodes (spread over the grid) where a functional compares `values` with the pieces
 VALUES_CHECK_DIRECTIONS = 32  # directions of S_k per node there
@@ -55,13 +57,19 @@ class _SignPart:
 
 @dataclass
 class _Side:
-    """A block evaluated at ψ (N, k): ℓ(ψ) = <z, ψ> − c(F_b, ψ) and its groups."""
+    """A block evaluated at ψ (N, k): ℓ(ψ) = <z, ψ> − c(F_b, ψ) and its groups.
+
+    `faces`: for a block of k ≥ 2 coordinates at ψ*, (nodes, [λ (nodes, m) per max-group])
+    where a max-group's face exposed by ψ* has several vertices and the nearest point's
+    decomposition over the faces is unique (:meth:`Pieces._faces`): there h is smooth in y
+    and its gradient takes each group's vertices weighted by λ, not one active vertex."""
 
     psi: np.ndarray
     ell: np.ndarray
     max_parts: list[_Piece]  # values <f_q, ψ>, gradients ψᵀ ∂f_q/∂y
     min_parts: list[_Piece]  # values g_p(y, ψ), gradients ∂g_p/∂y
     sign_parts: list[_SignPart]
+    faces: tuple[np.ndarray, list[np.ndarray]] | None = None
 
     @property
     def h(self) -> np.ndarray:
@@ -72,8 +80,12 @@ class _Side:
         element); y = (x, u, λ), the pieces' gradients fill the first n + m columns."""
         rows = np.arange(self.ell.size)
         grad = np.zeros((self.ell.size, width))
-        for part in self.max_parts:
-            grad[:, : part.grads.shape[-1]] -= part.grads[rows, np.argmax(part.values, axis=1)]
+        for index, part in enumerate(self.max_parts):
+            active = part.grads[rows, np.argmax(part.values, axis=1)]
+            if self.faces is not None:  # a face of several vertices: λ-weighted, ∂ψ*ᵀΣλf/∂y
+                at, weights = self.faces
+                active[at] = np.einsum("nq,nqd->nd", weights[index], part.grads[at])
+            grad[:, : part.grads.shape[-1]] -= active
         for part in self.min_parts:
             grad[:, : part.grads.shape[-1]] -= part.grads[rows, np.argmin(part.values, axis=1)]
         for sign in self.sign_parts:
@@ -298,7 +310,66 @@ class Pieces:
             psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples, start=memo[0][1] if memo else None)
             memo.insert(0, (key, psi))
             del memo[4:]
-        return self._side(block, y, z, psi.copy(), maxes)
+        side = self._side(block, y, z, psi.copy(), maxes)
+        side.faces = self._faces(block, y, zb, side, maxes)
+        return side
+
+    def _faces(self, block: SetBlock, y: np.ndarray, zb: np.ndarray, side: _Side,
+               maxes: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, list[np.ndarray]] | None:
+        """Where a max-group's face exposed by ψ* has several vertices (values within
+        FACE_TOL of the group's maximum), the weights λ of the nearest point's decomposition.
+
+        h = max_ψ ℓ(y, ψ) is a max over ψ of a min over each group's vertices, and ψ* moves
+        with y: formula (4.5), co{−ψ*ᵀ∂f_q : q active}, is then not h's superdifferential.
+        By Danskin's theorem applied to h = min over λ_j ∈ simplices of ‖z − Σ_j Σ_q λ_jq f_jq
+        − (the min-groups' support points)‖, h's superdifferential is co{−ψ*ᵀ Σ λ_jq ∂f_jq} over
+        the minimizing λ: one point where λ is unique, which it is unless vertices of the
+        faces are affinely dependent (duplicates, collinear, parallel faces of two groups).
+        λ solves the tangential condition of ψ*'s optimality, P(z − Σ λ_jq f_jq − Σ ∇_ψ g) = 0
+        with P = I − ψ*ψ*ᵀ, and Σ_q λ_jq = 1 per group (∇_ψ g of each min-group by central
+        differences at ψ*). Nodes where λ is not unique keep (4.5)'s set (a superset of the
+        true one). None where no node has such a face."""
+        if not maxes or block.signs:
+            return None
+        psi = side.psi
+        actives = []
+        for part in side.max_parts:
+            top = part.values.max(axis=1, keepdims=True)
+            spread = top - part.values.min(axis=1, keepdims=True)
+            actives.append(part.values >= top - FACE_TOL * (1.0 + np.abs(top) + spread))
+        at = np.flatnonzero(np.logical_or.reduce([a.sum(axis=1) >= 2 for a in actives]) & (side.ell > 0))
+        if at.size == 0:
+            return None
+        k = psi.shape[1]
+        project = np.eye(k) - np.einsum("ni,nj->nij", psi[at], psi[at])  # P per node
+        target = np.einsum("nij,nj->ni", project, zb[at])
+        for group in block.min_groups:  # −P∇_ψ min_p g_p, by central differences along P e_i
+            values = group.values if group.values is not None else (lambda x, q, g=group: g.pieces(x, q)[0])
+            step = FACE_STEP * project  # (n, k, k): row i is the step along P e_i
+            y_rep = np.repeat(y[at], k, axis=0)
+            ahead = _reduce_last(np.minimum, np.asarray(values(y_rep, (psi[at, None, :] + step).reshape(-1, k))))
+            behind = _reduce_last(np.minimum, np.asarray(values(y_rep, (psi[at, None, :] - step).reshape(-1, k))))
+            target -= ((ahead - behind) / (2.0 * FACE_STEP)).reshape(at.size, k)
+        columns = [np.where(a[at, :, None], f[at], 0.0) for a, (f, _) in zip(actives, maxes)]  # (n, m_j, k)
+        tangential = np.concatenate([np.einsum("nij,nqj->niq", project, c) for c in columns], axis=2)
+        sums = [np.zeros((at.size, len(columns), c.shape[1])) for c in columns]
+        for j, (a, simplex) in enumerate(zip(actives, sums)):
+            simplex[:, j, :] = a[at]
+        system = np.concatenate([tangential, np.concatenate(sums, axis=2)], axis=1)  # (n, k + G, Σm)
+        rhs = np.concatenate([target, np.ones((at.size, len(columns)))], axis=1)
+        u, sigma, vt = np.linalg.svd(system, full_matrices=False)
+        rank = (sigma > 1e-10 * sigma[:, :1]).sum(axis=1)
+        unique = rank == sum(a[at].sum(axis=1) for a in actives)  # one λ: as many independent rows as active vertices
+        inverse = np.where(sigma > 1e-10 * sigma[:, :1], 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
+        lam = np.einsum("nri,nr->ni", vt, inverse * np.einsum("njr,nj->nr", u, rhs))  # the least-squares λ
+        at, lam = at[unique], lam[unique]
+        if at.size == 0:
+            return None
+        weights, start = [], 0
+        for a in actives:
+            weights.append(lam[:, start : start + a.shape[1]])
+            start += a.shape[1]
+        return at, weights
 
     def _block_states(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[_Side]:
         """Every block at its ψ*."""

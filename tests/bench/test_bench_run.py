@@ -62,7 +62,7 @@ def test_tiny_sweep_writes_csv_json_figures_and_report(tiny):
         assert row["residual_error"] == max(row["boundary_error"], row["inclusion_residual"],
                                             row["consistency_error"], row["surface_error"] or 0.0)
         assert row["machine"] and row["max_iter"] == 15
-        assert row["error"] is not None and row["error"] >= 0 and row["claim"] == claim(row)
+        assert row["error"] is not None and row["error"] >= 0 and row["claim"] == _expected_claim(row)
     by_key = {_key(r): r for r in rows}
     exact = by_key[("paper-7.1", "gauss-newton", "armijo", "N=11")]
     assert exact["status"] == "solved" and exact["found"] and exact["reference_kind"] == "exact"
@@ -252,23 +252,44 @@ def test_standard_suite_covers_the_issue_list():
     assert max(c.nodes or 0 for c in sweep.cases) == 100001
 
 
+def _expected_claim(row):
+    """qpbenchmark's correct rate, written out here (not sweep.claim): a `solved` promises
+    error ≤ claim_tol (an accuracy= run: its target)."""
+    within = row["error"] is not None and row["error"] <= row["claim_tol"]
+    if row["status"] == "solved":
+        return "confirmed" if within else "false"
+    return "missed" if within else "none"
+
+
 def test_the_quick_suite_runs_and_judges_every_row(tmp_path):
-    """The quick suite as the CI runs it: every row judged against a reference."""
+    """The quick suite as the CI runs it: every row judged against a reference, or saying
+    why not. Statuses and iteration counts are not pinned: they differ across BLAS kernels
+    (coulomb-rest-to-rest at accuracy=1e-6 ends stationary on one CPU and max_iter on
+    another), while what a row promises must hold on every one."""
     out = tmp_path / "quick"
     assert qdframe_main(["bench", "run", "--suite", "quick", "--peers", "--out", str(out), "--quiet"]) == 0
     rows = _rows(out)
-    assert len(rows) == len(bench_sweep.plan("quick", peers=True).cases)
-    unjudged = [row for row in rows if row["error"] is None and row["status"] != "failed"]
-    # the one row whose reference cannot be made: gauss-newton with accuracy=1e-6 on
-    # coulomb-rest-to-rest ends stationary (I ≤ tol, the pointwise checks no longer halving),
-    # and the events replay finds no consistent Filippov mode on that iterate; the row must say so
-    for row in unjudged:
-        assert (row["model"], row["knob"], row["status"]) == ("coulomb-rest-to-rest", "accuracy=1e-06", "stationary"), row
-        assert "no consistent Filippov mode" in row["message"], row["message"]
+    assert sorted(map(_key, rows)) == sorted(
+        (c.model, c.direction, c.line_search, c.knob) for c in bench_sweep.plan("quick", peers=True).cases)
+    for row in rows:
+        assert row["claim"] == _expected_claim(row), row["message"]
+        if row["error"] is None:  # no reference error: never a success, and the row says why
+            assert row["status"] != "solved", row["message"]
+            assert row["status"] == "failed" or "no reference error: " in row["message"], row["message"]
+        else:
+            assert np.isfinite(row["error"]) and row["error"] >= 0
     assert all(r["reference_kind"] == "exact" for r in rows if r["model"] == "paper-7.1")
+    # the error promise is accuracy=: every one of its `solved` rows meets its target
+    adaptive = [r for r in rows if r["knob"].startswith("accuracy=")]
+    assert adaptive and all(r["error"] <= r["claim_tol"] == float(r["knob"].split("=")[1])
+                            for r in adaptive if r["status"] == "solved"), adaptive
     report = (out / "report.md").read_text()
     assert "## Against the peers" in report and "solve_bvp" in report
-    # gauss-newton reaches 1e-6 on the exact models; its time is in the table
+    contradicted = report.split("## Success reports the error contradicts")[1].split("![")[0]
+    for row in rows:  # every success the error contradicts is listed, and only those
+        line = f"- false success: {row['model']} {row['solver']} {row['knob']}:"
+        assert (line in contradicted) == (row["claim"] == "false"), line
+    # accuracy= certifies block-stop-stick to 1e-6 (tests/test_accuracy.py checks the estimate)
     reached = time_to(rows, 1e-6)
     assert ("block-stop-stick", "gauss-newton / armijo (accuracy=)") in reached
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,7 @@ import pytest
 
 import qdframe
 from qdframe.bench.directions import degenerate_instances
+from qdframe.bench.sweep import installed_directions
 from qdframe.cli import main
 from qdframe.directions import qp as qp_module
 from qdframe.directions.native import NativeDirection
@@ -130,11 +132,7 @@ def test_the_rows_the_bench_failed_at_10000_nodes_are_solved(name, kind):
     solver = BACKENDS[name]()
     instance = degenerate_instances(10000)[kind]
     assert_like_native(solver, instance.center, instance.generators, instance.mask, tolerance=1e-9)
-    assert solver.last_stats.failed == 0
-    if name == "clarabel":
-        assert solver.last_stats.polished == 10000 and solver.last_stats.retried == 0
-    else:
-        assert solver.last_stats.retried > 0
+    assert solver.last_stats.failed == 0  # how it got there (polished, retried rows) is the backend's own
 
 
 def test_no_groups_returns_the_center(backend):
@@ -144,14 +142,32 @@ def test_no_groups_returns_the_center(backend):
     assert weights.shape == (3, 0, 1)
 
 
+def _qp_directions() -> list[str]:
+    """Every QP direction that can be built here (qpsolvers: each solver it offers)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        usable, _ = installed_directions(qpsolvers_all=True)
+    return [name for name in usable if name not in ("native", "gauss-newton")]
+
+
+@pytest.fixture(scope="module")
+def native_runs():
+    return {model: qdframe.solve(model, nodes=101, direction="native") for model in ("paper-7.1", "paper-7.2")}
+
+
 @pytest.mark.parametrize("model", ["paper-7.1", "paper-7.2"])
-def test_solve_matches_the_native_run(backend, model):
-    native = qdframe.solve(model, nodes=21, direction="native")
-    result = qdframe.solve(model, nodes=21, direction=backend)
-    assert result.status == native.status
-    assert abs(result.objective - native.objective) <= 1e-6
-    assert abs(result.iterations - native.iterations) <= 3
-    assert result.direction == backend.label
+@pytest.mark.parametrize("name", _qp_directions())
+def test_solve_matches_the_native_run(name, model, native_runs):
+    """README: at N = 101 every backend gives native's run: the same iterates, so the same
+    status, iteration count and objective, bit for bit (the polish solves each row's support
+    as native does)."""
+    native = native_runs[model]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        result = qdframe.solve(model, nodes=101, direction=name)
+    assert result.direction == name
+    assert (result.status, result.iterations, result.objective) == (native.status, native.iterations, native.objective)
+    assert np.array_equal(result.x, native.x) and np.array_equal(result.z, native.z)
 
 
 # -------------------------------------------------------------- failures, never silent

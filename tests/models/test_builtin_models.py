@@ -2,11 +2,15 @@
 point there, under the model's own name."""
 
 import importlib
+import sys
 from pathlib import Path
 
 import pytest
 
-tomllib = pytest.importorskip("tomllib")  # Python ≥ 3.11
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser, from the test extra
+    import tomli as tomllib
 PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
 ENTRIES = tomllib.loads(PYPROJECT.read_text())["project"]["entry-points"]["qdframe.models"]
 

@@ -105,11 +105,25 @@ def test_boundary_options_on_the_command_line(capsys):
 
 
 def test_band_and_exact_agree_off_the_switch():
-    """Far from s = 0 the band's set is a·sign(s), the exact selection's point too."""
-    exact = qdframe.solve("slide-on-line", nodes=101, max_iter=0)
-    assert exact.selections is not None and exact.selections.shape == (101, 1)
-    band = qdframe.solve("slide-on-line", nodes=101, max_iter=0, signs="band")
-    assert band.selections is None and band.terms["sigma"] == 0.0
+    """Where |s| ≥ band the band's set is the point a·sign(s), and so is the exact one with
+    λ = sign(s) (which its natural map holds: σ = 0): the same sets, distances and I."""
+    model = qdframe.load_model("slide-on-line", x0=[1.0, 0.5])  # s = x1 + x2 > 0 from the start
+    grid = Grid(model.T, 11, model.default_scheme)
+    exact, band = Functional(model, grid), Functional(model, grid, signs="band")
+    rng = np.random.default_rng(4)
+    t = grid.t[:, None]
+    x = np.hstack([1.0 + t, 0.5 + 0.1 * t]) * np.where(rng.random((11, 1)) < 0.5, 1.0, -1.0)  # |x1 + x2| ≥ 1.5
+    z = rng.normal(size=(11, 2))
+    on_exact, on_band = exact.pack(x, z), band.pack(x, z)  # λ = clip(s/band) = sign(s) here
+    s = -(on_exact[:, 0] + on_exact[:, 1])  # the term's switch −x1 − x2
+    assert np.min(np.abs(s)) >= 1.0 and np.array_equal(exact.selections(on_exact)[:, 0], np.sign(s))
+    for (lo_e, hi_e), (lo_b, hi_b) in zip(exact.set_bounds(on_exact), band.set_bounds(on_band)):
+        assert np.array_equal(lo_e, hi_e) and np.array_equal(lo_b, hi_b)  # a point each
+        assert np.array_equal(lo_e, lo_b)
+    terms_exact, terms_band = exact.terms(on_exact), band.terms(on_band)
+    assert terms_exact.sigma == 0.0 and terms_exact.phi > 0.1
+    assert terms_exact.phi == pytest.approx(terms_band.phi, rel=1e-14)
+    assert terms_exact.I == pytest.approx(terms_band.I, rel=1e-14)
 
 
 @pytest.mark.parametrize("name", ["trapezoid", "implicit-euler", "radau-iia"])
