@@ -98,9 +98,6 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
     note, spent = "", []
     while result.status == "solved":
         functional, result = settle_switches(functional, result, own)
-        if result.status != "solved":
-            note = f"the solve on {functional.grid.nodes} points (switch times pinned) ended {result.status}"
-            break
         found = _timed(functional, result, companion, certificate, spent)
         if found.value is None:
             note = f"no error estimate on {functional.grid.nodes} points: {found.detail}"
@@ -149,7 +146,9 @@ def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 
 def settle_switches(functional: Functional, result: SolveResult, resolve: Resolve) -> tuple[Functional, SolveResult]:
-    """Move mesh points onto the switch times and re-solve until the times settle."""
+    """Move mesh points onto the switch times and re-solve until the times settle (or stop
+    moving closer); a re-solve that does not end `solved` is dropped, and the last solved
+    mesh and solution are returned."""
     times = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
     change = np.inf
     for _ in range(SWITCH_ROUNDS):
@@ -158,8 +157,11 @@ def settle_switches(functional: Functional, result: SolveResult, resolve: Resolv
         tau = pin(functional.grid.mesh_times, times)
         if np.array_equal(tau, functional.grid.mesh_times):
             break
-        functional = like(functional, Grid.from_mesh(tau, functional.grid.scheme))
-        result = resolve(functional, result)
+        pinned = like(functional, Grid.from_mesh(tau, functional.grid.scheme))
+        attempt = resolve(pinned, result)
+        if attempt.status != "solved":  # keep the mesh and solution that were solved: the switches stay where they are
+            break
+        functional, result = pinned, attempt
         moved = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
         if moved.size != times.size:
             times = moved
