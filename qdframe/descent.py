@@ -180,6 +180,8 @@ def solve(
     )
     solver = make_direction(direction)
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
+    if continuation is None and starts.motion() is not None:
+        continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
     grids = grid_schedule(nodes, solver.default_continuation if continuation is None else continuation,
                           solver.coarsest_nodes, solver.ladder_steps)
     stages = []  # the functionals solved in turn: each grid, the first one also with the band if exact

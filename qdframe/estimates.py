@@ -10,7 +10,7 @@ the estimate takes 2.5 (p = 1 with a quarter's margin for the higher-order terms
 coarse grids), plus what the two discrete solutions cannot see, the result's own defects:
 
     2.5·max_k |x_h(t_k) − x_{h/2}(t_k)| + boundary error + consistency error
-        + T·(inclusion residual + max a·selection residual) + 8ε·max(1, |x|).
+        + T·(inclusion residual + max a·selection residual) + 64ε·max(1, |x|).
 
 The defects matter near the solver's tolerance: a trajectory that misses x_j(T) = xT_j by
 b is at least b from every solution there, and a velocity h outside F moves x by up to
@@ -26,7 +26,7 @@ integrated by DOP853 with event location (rtol = atol = 1e-11). x_ref is a true 
 the inclusion; the estimate is
 
     max_k |x(t_k) − x_ref(t_k)| + how far x_ref misses the end, periodic and surface
-        conditions + the integration's uncertainty + 8ε·max(1, |x|),
+        conditions + the integration's uncertainty + 64ε·max(1, |x|),
 
 the uncertainty being how far the motion integrated at 10 times the tolerance moves.
 
@@ -52,7 +52,7 @@ from .result import SolveResult
 BISECTION, REPLAY = "bisection", "replay"
 CERTIFICATES = (BISECTION, REPLAY)
 ESTIMATE_FACTOR = 2.5  # 2^p/(2^p − 1) ≤ 2 for every order p ≥ 1, with a quarter's margin
-ROUNDING = 8 * np.finfo(float).eps  # relative: the estimate never claims less than rounding
+ROUNDING = 64 * np.finfo(float).eps  # relative: the estimate never claims less than rounding (its reference's too)
 REPLAY_TOL = 1e-11  # DOP853's rtol and atol in the replay
 
 Resolve = Callable[[Functional, SolveResult], SolveResult]  # a descent on a functional from a result

@@ -48,8 +48,9 @@ class Simulation:
     x: np.ndarray
     z: np.ndarray
     u: np.ndarray | None
-    dt: float
+    dt: float  # the largest step
     state_names: tuple[str, ...]
+    selections: np.ndarray | None = None  # λ of each selection, with z: of the step from t_k (the last: repeated)
 
     def to_dict(self) -> dict:
         return {
@@ -92,9 +93,19 @@ def simulate(
         raise InputError("model", f"a model of one-coordinate blocks for simulation ({model.name} has a ψ ∈ S_k block)")
     steps = int(np.ceil((t_end - t_start) / dt - 1e-9))
     dt = (t_end - t_start) / steps
-    t = t_start + dt * np.arange(steps + 1)
+    return simulate_on(model, t_start + dt * np.arange(steps + 1), x, controls)
+
+
+def simulate_on(model: InclusionModel, t: np.ndarray, x_start: Sequence[float],
+                controls: Sequence[float] | Callable[[float], np.ndarray] | None = None) -> Simulation:
+    """The same implicit Euler steps on the given times t (increasing, any spacing): the
+    discrete solution a solve's implicit-Euler grid has, where the model leaves no choice."""
+    t = np.asarray(t, dtype=float)
+    steps = t.size - 1
+    x = np.asarray(x_start, dtype=float).reshape(-1)
     us = _control_values(model, controls, t)
-    stepper = _Stepper(model, dt)
+    widths = np.diff(t)
+    stepper = _Stepper(model, float(np.max(widths)))
 
     xs = np.empty((steps + 1, model.n_states))
     zs = np.empty_like(xs)
@@ -102,19 +113,24 @@ def simulate(
     lam = np.sign(stepper.switches(np.concatenate([x, us[0]])[None, :])[0])[0]
     lo, hi, _, _ = stepper.bounds(np.concatenate([x, us[0]])[None, :], lam[None, :])
     z = np.clip(0.5 * (lo[0] + hi[0]), lo[0], hi[0])
+    lams = np.empty((steps + 1, lam.size))
     k, window = 0, WINDOW_MIN
     while k < steps:
         size = min(window, steps - k)
+        stepper.steps(widths[k : k + size], widths[k - 1] if k else widths[0])
         count, z_new, lam_new = stepper.window(xs[k], z, lam, us[k + 1 : k + 1 + size])
         if count == 0:
+            stepper.steps(widths[k : k + 1], widths[k - 1] if k else widths[0])
             count, z_new, lam_new = 1, *stepper.single(xs[k], z, lam, us[k + 1])
-        xs[k + 1 : k + 1 + count] = xs[k] + np.cumsum(dt * z_new[:count], axis=0)
-        zs[k : k + count] = z_new[:count]
+        xs[k + 1 : k + 1 + count] = xs[k] + np.cumsum(widths[k : k + count, None] * z_new[:count], axis=0)
+        zs[k : k + count] = z_new[:count]  # z[k]: the velocity of the step from t_k (x[k+1] = x[k] + Δt·z[k])
+        lams[k : k + count] = lam_new[:count]
         z, lam = z_new[count - 1], lam_new[count - 1]
         k += count
         window = min(2 * window, WINDOW_MAX) if count == size else max(count, WINDOW_MIN)
-    zs[-1] = z
-    return Simulation(model.name, t, xs, zs, us if model.n_controls else None, dt, tuple(model.state_names))
+    zs[-1], lams[-1] = z, lam
+    return Simulation(model.name, t, xs, zs, us if model.n_controls else None, float(np.max(widths)),
+                      tuple(model.state_names), lams)
 
 
 def _control_values(model: InclusionModel, controls, t: np.ndarray) -> np.ndarray:
@@ -141,7 +157,13 @@ class _Stepper:
 
     def __init__(self, model: InclusionModel, dt: float) -> None:
         self.functional = Functional(model, Grid(1.0, 2), signs="exact")
-        self.n, self.p, self.dt = model.n_states, self.functional.p, dt
+        self.n, self.p = model.n_states, self.functional.p
+        self.steps(np.array([dt]), dt)
+
+    def steps(self, widths: np.ndarray, before: float) -> None:
+        """The step widths Δt_j (W,) of the next window and the width of the step before it."""
+        self.dt = np.asarray(widths, dtype=float)[:, None]  # (W, 1)
+        self.dt_before = np.concatenate([[before], widths[:-1]])[:, None]  # Δt_{j−1}
         self.coords = [block.coords[0] for block in self.functional.blocks]
         self.size = self.n + self.p  # unknowns per step: x_j, then λ_j
 
@@ -177,8 +199,8 @@ class _Stepper:
         each step is solved (W,); the Jacobian's blocks: on step j's own unknowns (W, n + p, n + p)
         and the diagonals on x_{j−1} and x_{j−2} (W, n); and c (W, p), the natural map's scale
         (given, or 1/|∂s/∂λ| through the step at this iterate: :meth:`scales`)."""
-        n, dt = self.n, self.dt
-        x = x0 + np.cumsum(dt * z, axis=0)  # x_j = x_0 + Δt·Σ_{i≤j} z_i, x_0 the window's start
+        n, dt, before = self.n, self.dt[: z.shape[0]], self.dt_before[: z.shape[0]]
+        x = x0 + np.cumsum(dt * z, axis=0)  # x_j = x_0 + Σ_{i≤j} Δt_i·z_i, x_0 the window's start
         y = np.concatenate([x, u], axis=1)
         lo, hi, dlo, dhi = self.bounds(y, lam)
         s, ds = self.switches(y)
@@ -190,7 +212,7 @@ class _Stepper:
         slope = np.where(upper[:, :, None], dhi, np.where(lower[:, :, None], dlo, 0.0))  # ∂target/∂(x, λ)
         own = np.zeros((z.shape[0], self.size, self.size))
         own[:, :n] = -slope
-        own[:, :n, :n] += np.eye(n) / dt
+        own[:, :n, :n] += np.eye(n)[None, :, :] / dt[:, :, None]
         if scale is None:
             scale = self.scales(own, ds)
         moved = lam + scale * s
@@ -203,9 +225,9 @@ class _Stepper:
         solved &= np.all(np.abs(r_lam) <= TOL + scale * np.sum(np.abs(ds) * noise, axis=2), axis=1)
         own[:, n:, :n] = -(scale * inside)[:, :, None] * ds
         own[:, n:, n:] = np.eye(self.p) * (1.0 - inside[:, None, :])
-        back1 = -(1.0 + keep) / dt  # z_j − z_{j−1}·keep with z_j = (x_j − x_{j−1})/Δt
+        back1 = -1.0 / dt - keep / before  # z_j − z_{j−1}·keep with z_j = (x_j − x_{j−1})/Δt_j
         back1[0] = 0.0
-        back2 = keep / dt
+        back2 = keep / before
         back2[:2] = 0.0
         return np.concatenate([r_z, r_lam], axis=1), solved, own, back1, back2, scale
 
@@ -238,7 +260,7 @@ class _Stepper:
     def velocities(self, z: np.ndarray, change: np.ndarray) -> np.ndarray:
         """z after a Newton change of x: z_j + (Δx_j − Δx_{j−1})/Δt."""
         dx = change[:, : self.n]
-        return z + np.diff(dx, axis=0, prepend=np.zeros((1, self.n))) / self.dt
+        return z + np.diff(dx, axis=0, prepend=np.zeros((1, self.n))) / self.dt[: z.shape[0]]
 
     def window(self, x0: np.ndarray, z0: np.ndarray, lam0: np.ndarray,
                u: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:

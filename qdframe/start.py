@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .filippov import FilippovError, FilippovTrajectory, integrate, model_system
+from .errors import QdframeError
 from .functional import Functional
 from .grid import Grid
 
@@ -54,7 +55,9 @@ class Starts:
         if motion is not None:
             try:
                 out.append((SIMULATED, sample(functional, motion)))
-            except (FilippovError, np.linalg.LinAlgError, ValueError) as exc:
+                if functional.grid.scheme.name == "implicit-euler":  # its discrete solution, step by step
+                    out.append((SIMULATED, stepped(functional, motion(np.array([0.0]))[0])))
+            except (QdframeError, np.linalg.LinAlgError, ValueError) as exc:
                 self.note = f"no simulated start: {exc}"
         return out
 
@@ -194,3 +197,17 @@ def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
         z = g
     return functional.pack(x, z, None, lam if functional.p else None)
 
+
+
+def stepped(functional: Functional, x0: np.ndarray) -> np.ndarray:
+    """ξ on an implicit-Euler grid from the simulator's steps on its very points
+    (:func:`qdframe.simulate.simulate_on`): the discrete solution of an initial-value
+    problem whose model leaves no choice, so that the solve has only to confirm it."""
+    from .simulate import simulate_on
+
+    run = simulate_on(functional.model, functional.grid.t, x0)
+    z = np.concatenate([run.z[:1], run.z[:-1]])  # z_k of the step that ends at t_k (implicit Euler's)
+    lam = None
+    if functional.p and run.selections is not None:
+        lam = np.concatenate([run.selections[:1], run.selections[:-1]])
+    return functional.pack(run.x, z, None, lam)

@@ -1,5 +1,5 @@
-"""Certified accuracy (issue 14): nonuniform meshes, the pointwise checks of `solved`, the
-error estimate against exact solutions, located switch times and `accuracy=`."""
+"""Certified accuracy (issues 14, 30): nonuniform meshes, the pointwise checks, the error
+estimate against exact solutions on fixed grids, located switch times and `accuracy=`."""
 
 from __future__ import annotations
 
@@ -12,27 +12,19 @@ from qdframe.errors import InputError
 from qdframe.grid import Grid
 
 EXACT = exact_models()  # every registered model with an exact solution, the plugin's too
-RESIDUAL_TOL = 1e-8  # solve's default: the pointwise checks of `solved`, relative to max(1, max|x|)
-ESTIMATE_FACTOR = 1.3  # the estimate 2.5·max|x_h − x_{h/2}| is 1.25× a first-order error (measured 1.245–1.263)
+RESIDUAL_TOL = 1e-8  # solve's default: the pointwise checks, relative to max(1, max|x|)
+ESTIMATE_FACTOR = 1.3  # bisection's 2.5·max|x_h − x_{h/2}| is 1.25× a first-order error (measured 1.245–1.263)
+REPLAY_SLACK = 1e-8  # the replay's own integration (rtol 1e-11) and rounding, relative to max(1, max|x|)
 
-# Known failures of the promise, with what was measured (`qdframe.solve(name, nodes=N)` /
-# `accuracy=1e-6` on the 2-core machine); README.md, "Known failures", lists them too.
+# Known failures of the promise, with what was measured on the 2-core machine; README.md,
+# "Known failures", lists them too.
 KNOWN = {
-    ("stick-slip-oscillator", 101): "solved with error estimate 2.81 below its true error 4.51 "
-                                    "(implicit Euler damps the 24 reversals); issue 30",
-    ("stick-slip-oscillator", 1001): "solved without an error estimate (its solve on the bisected 2001-point grid "
-                                     "ends max_iter), true error 2.97; issue 30",
-    ("stick-slip-oscillator", "accuracy"): "accuracy=1e-6 ends stationary on 41 points without an estimate, "
-                                           "true error 4.69; issue 31",
+    ("stick-slip-oscillator", "accuracy"): "accuracy=1e-6 ends uncertified: estimate 1.0e-3 on 3233 points (its "
+                                           "true error), the refined 12929-point solve stationary; issue 31",
 }
 
 
-NOT_RUN = {
-    # 54–63 s of the suite for a run that makes no claim: not solved (max_iter after 500
-    # iterations, true error 1.13; issue 31), so its estimate is None as it must be
-    ("stick-slip-oscillator", 10001): "a minute-long solve that ends max_iter",
-}
-
+NOT_RUN: dict = {}  # (model, setting): why it is left out; none is
 
 def _cases(settings):
     return [pytest.param(name, setting, marks=pytest.mark.xfail(strict=True, reason=KNOWN[name, setting]))
@@ -79,7 +71,7 @@ def test_a_mesh_point_on_the_stop_makes_implicit_euler_exact_in_velocity():
     tau = np.concatenate([np.linspace(0, 1, 8), np.linspace(1, 3, 12)[1:]])
     result = qdframe.solve("block-stop-stick", mesh=tau)
     exact = qdframe.load_model("block-stop-stick").exact_solution(result.t)
-    assert result.solved and result.nodes == tau.size and result.options["uniform"] is False
+    assert result.converged and result.nodes == tau.size and result.options["uniform"] is False
     assert np.max(np.abs(result.x[:, 1] - exact[:, 1])) <= 1e-9
     assert result.switch_times == pytest.approx([1.0], abs=1e-9)
 
@@ -87,7 +79,7 @@ def test_a_mesh_point_on_the_stop_makes_implicit_euler_exact_in_velocity():
 # ------------------------------------------------------------------------ certification
 def test_solved_reports_every_check_against_a_tolerance_scaled_to_the_states():
     result = qdframe.solve("block-stop-stick", nodes=101)
-    assert result.solved
+    assert result.converged
     scale_x = max(1.0, float(np.max(np.abs(result.x))))
     assert set(result.checks) == {"boundary", "inclusion", "selection", "consistency"}
     assert result.checks["consistency"]["tol"] == pytest.approx(1e-8 * scale_x)
@@ -100,7 +92,7 @@ def test_solved_reports_every_check_against_a_tolerance_scaled_to_the_states():
 
 def test_the_boundary_error_is_read_from_x_itself():
     result = qdframe.solve("block-stop-stick-bvp", nodes=101)
-    assert result.solved
+    assert result.converged
     assert result.boundary_error == pytest.approx(abs(result.x[-1, 0] - 1.0), abs=0.0)
 
 
@@ -113,53 +105,61 @@ def test_the_exact_models_are_all_found():
 
 
 @pytest.mark.parametrize("name, nodes", _cases([101, 1001, 10001]))
-def test_a_solved_result_has_its_true_error_within_its_estimate(name, nodes):
-    """README: at N = 101, 1001 and 10001 with the default scheme, a `solved` result's true
-    error is within its estimate, and the estimate is 1.25 times a first-order error (the
-    bound here: 1.3×), or, where the scheme is exact at the points (paper-7.1's trapezoid,
-    two-surface-sliding's implicit Euler), within the pointwise tolerance."""
+def test_a_fixed_grid_has_its_true_error_within_its_estimate(name, nodes):
+    """README: on a fixed grid (nodes=N, the default scheme) the discrete problem is solved,
+    its estimate is at or above the true error, and it is `solved` exactly where the estimate
+    meets the default target 1e-6·max(1, max|x|). The replay of an initial-value problem is
+    its true error (to its integration); bisection is 1.25 times a first-order error (the
+    bound here: 1.3×), or, where the scheme is exact at the points, within the tolerance."""
     result = qdframe.solve(name, nodes=nodes)
-    assert result.solved, result.message
+    assert result.converged, result.message
     assert result.error_estimate is not None, result.message
     assert result.solution_error <= result.error_estimate
-    floor = RESIDUAL_TOL * max(1.0, float(np.max(np.abs(result.x))))
-    assert result.error_estimate <= ESTIMATE_FACTOR * result.solution_error + floor
+    scale = max(1.0, float(np.max(np.abs(result.x))))
+    if result.certificate == "replay":
+        assert result.error_estimate <= result.solution_error + REPLAY_SLACK * scale
+    else:
+        assert result.error_estimate <= ESTIMATE_FACTOR * result.solution_error + RESIDUAL_TOL * scale
+    assert result.solved == (result.error_estimate <= 1e-6 * scale)
 
 
 def test_no_estimate_when_skipped_or_not_solved():
     assert qdframe.solve("block-stop-stick", nodes=101, estimate=False).error_estimate is None
-    unfinished = qdframe.solve("block-stop-stick", nodes=101, max_iter=1)
+    unfinished = qdframe.solve("block-stop-stick", nodes=101, max_iter=1, simulate_start=False)
     assert unfinished.status == "max_iter" and unfinished.error_estimate is None and unfinished.switch_times.size == 0
 
 
 # ---------------------------------------------------------------- switches and accuracy
 @pytest.mark.parametrize("name, setting", _cases(["accuracy"]))
-def test_accuracy_locates_the_switches_and_meets_the_target_with_few_nodes(name, setting):
-    """README: with accuracy=1e-6 every exact problem ends solved with true error ≤ 1e-6 (and
-    within its estimate) on fewer than 200 points, the switch times within 1e-8."""
+def test_accuracy_locates_the_switches_and_meets_the_target(name, setting):
+    """README: with accuracy=1e-6 every exact problem ends solved with true error within its
+    estimate ≤ 1e-6·max(1, max|x|), the switch times it declares within 1e-8."""
     model = qdframe.load_model(name)
     result = qdframe.solve(model, accuracy=1e-6)
     assert result.solved, result.message
-    assert result.solution_error <= result.error_estimate <= 1e-6
-    assert result.nodes < 200
+    assert result.solution_error <= result.error_estimate <= 1e-6 * max(1.0, float(np.max(np.abs(result.x))))
     exact = _known_switch_times(model)
-    assert result.switch_times.size == exact.size, result.switch_times
-    assert np.max(np.abs(result.switch_times - exact), initial=0.0) <= 1e-8
+    if "switch_times" in vars(type(model)) or exact.size:
+        assert result.switch_times.size == exact.size, result.switch_times
+        assert np.max(np.abs(result.switch_times - exact), initial=0.0) <= 1e-8
     assert "error estimate" in result.message and result.options["accuracy"] == 1e-6
 
 
 def test_an_unmet_accuracy_says_why():
     result = qdframe.solve("slide-on-line", accuracy=1e-12, max_nodes=200, scheme="implicit-euler")
-    assert result.status == "stationary"
-    assert "accuracy 1.0e-12 not met" in result.message and "max_nodes = 200" in result.message
+    assert result.status == "uncertified" and result.error_estimate > 1e-12
+    assert "max_nodes = 200" in result.message and "exceeds the target" in result.message
 
 
-def test_accuracy_is_never_claimed_without_an_estimate():
-    """paper-7.3 at accuracy=1e-6: the companion solve on the bisected mesh does not finish, so
-    there is no estimate, and no `solved` (found by bench run's reference: error 3.5e-3)."""
-    result = qdframe.solve("paper-7.3", accuracy=1e-6)
-    assert result.error_estimate is None
-    assert result.status == "stationary" and "no error estimate" in result.message
+@pytest.mark.xfail(strict=True, reason="paper-7.3's default call ends uncertified: estimate 1.1e-2 on 43 points, the "
+                   "refined 169-point solve stationary (its pointwise checks stop shrinking); issue 31")
+def test_paper_73_is_certified_by_default():
+    from qdframe.bench.references import judge
+
+    model = qdframe.load_model("paper-7.3")
+    result = qdframe.solve(model)
+    assert result.solved and result.certificate == "replay"
+    assert judge(model, result.t, result.x, result.z, result.u).error <= result.error_estimate
 
 
 def test_accuracy_input_is_checked():
