@@ -81,7 +81,7 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
     the history), `companion` is the estimate's solver; `scheme` takes over from the first
     solve's implicit Euler once its switches have settled."""
     scheme_name = make_scheme(scheme).name
-    if result.status != "solved":
+    if result.status == "stationary":  # not the budget: another scheme may meet the conditions
         fallback = like(functional, Grid(functional.grid.T, FALLBACK_NODES, FALLBACK_SCHEME))
         retried = own(fallback, result)
         if retried.status != "solved":
@@ -89,6 +89,8 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
                              f"the first solve ended {result.status}, and on {FALLBACK_NODES} points of "
                              f"{FALLBACK_SCHEME} {retried.status}")
         functional, result = fallback, retried
+    elif result.status != "solved":
+        return Certified(functional, result, Estimate(None, None, detail=f"the first solve ended {result.status}"))
     else:
         functional, result = settle_switches(functional, result, own)
         if result.status == "solved" and scheme_name != functional.grid.scheme.name:

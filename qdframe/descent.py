@@ -425,7 +425,9 @@ def _interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
             return out
 
     u = None if previous.u is None else velocity(previous.u)
-    selections = None if previous.selections is None else np.clip(velocity(previous.selections), -1.0, 1.0)
+    selections = None if previous.selections is None else velocity(previous.selections)
+    if selections is not None and source is not None:  # a polynomial may overshoot [−1, 1]
+        selections = np.clip(selections, -1.0, 1.0)
     return functional.pack(position(previous.x), velocity(previous.z), u, selections)  # λ None: the band's
 
 

@@ -198,12 +198,12 @@ def condition_parts(functional: Functional, xi: np.ndarray) -> list[Clause]:
     for j, target, residual in zip(functional.end, model.end_values, end):  # χ
         gap = abs(x[-1, j] - target)
         clauses.append(Clause(0.5 * float(residual) ** 2, f"end condition {names[j]}(T) = {target:g} not reached: "
-                              f"nearest {_number(x[-1, j], gap)} (gap {gap:.1e})", "end", gap, int(j)))
+                              f"nearest {_number(x[-1, j], gap)} (gap {gap:.2e})", "end", gap, int(j)))
     for i, residual in zip(functional.periodic, end[functional.end.size:]):  # χ, periodic
         gap = abs(x[-1, i] - x[0, i])
         clauses.append(Clause(0.5 * float(residual) ** 2, f"periodic condition {names[i]}(T) = {names[i]}(0) not met: "
                               f"{names[i]}(0) = {_number(x[0, i], gap)}, {names[i]}(T) = {_number(x[-1, i], gap)} "
-                              f"(gap {gap:.1e})", "periodic", gap))
+                              f"(gap {gap:.2e})", "periodic", gap))
     if functional.surface is not None:  # ω
         e = np.abs(functional.surface_values(xi)[0])
         for i in range(e.shape[1]):

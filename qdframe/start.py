@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .filippov import FilippovError, FilippovTrajectory, integrate, model_system
-from .errors import QdframeError
+from .errors import ModelOutputError, QdframeError
 from .functional import Functional
 from .grid import Grid
 
@@ -66,9 +66,12 @@ class Starts:
         true motion: on a coarse grid its discretization residual may exceed a hand-made
         start's, but it has the solution's switches), else the model's."""
         candidates = self.candidates(functional)
-        for label, xi in reversed(candidates):
-            if np.isfinite(functional.objective(xi)):
-                return label, xi
+        for label, xi in reversed(candidates[1:]):
+            try:
+                if np.isfinite(functional.objective(xi)):
+                    return label, xi
+            except ModelOutputError:  # non-finite along the motion: the model's start (its errors are named there)
+                continue
         return candidates[0]
 
     def motion(self) -> FilippovTrajectory | None:
@@ -77,7 +80,7 @@ class Starts:
             self._tried = True
             try:
                 self._motion = simulate(Functional(self.model, Grid(self.model.T, 2, "implicit-euler")))
-            except (FilippovError, np.linalg.LinAlgError, ValueError, OverflowError) as exc:
+            except (QdframeError, np.linalg.LinAlgError, ValueError, OverflowError) as exc:  # NaN: the model's start
                 self.note = f"no simulated start: {exc}"
         return self._motion
 

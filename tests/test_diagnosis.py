@@ -32,7 +32,7 @@ def test_an_end_value_past_where_the_block_sticks_is_named_with_the_value_reache
     """block-stop-stick stops at p = 1 for good; p(3) = 3 cannot be reached. The iterate
     gets to p(3) ≈ 2.91 only by breaking the friction law (σ carries most of I), so the
     end condition is named last, with its own small part of I, and says so."""
-    result = qdframe.solve(qdframe.load_model("block-stop-stick", end_values=[3, NAN]), max_iter=60)
+    result = qdframe.solve(qdframe.load_model("block-stop-stick", end_values=[3, NAN]), nodes=101, max_iter=60)
     assert result.status in {"stationary", "max_iter"} and result.I > 0.1
     nearest, gap = end_clause(result.message, "position(T) = 3")
     assert nearest == pytest.approx(result.x[-1, 0], abs=1e-3) and 1.0 < nearest < 3.0
@@ -88,7 +88,7 @@ def test_a_surface_the_inclusion_leaves_is_named():
 
 
 def test_a_run_out_of_iterations_keeps_the_diagnosis():
-    result = qdframe.solve(qdframe.load_model("paper-7.2", end_values=[3, 0]), max_iter=2)
+    result = qdframe.solve(qdframe.load_model("paper-7.2", end_values=[3, 0]), nodes=101, max_iter=2)
     assert result.status == "max_iter"
     assert result.message.startswith("2 iterations spent; ")
     end_clause(result.message, "x1(T) = 3")

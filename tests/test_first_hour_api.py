@@ -76,7 +76,7 @@ def nan_model(threshold: float, gradient: bool = False) -> InclusionModel:
 
 def test_the_model_is_finite_at_the_start_and_on_the_solution():
     result = qdframe.solve(nan_model(np.inf), nodes=21)
-    assert result.solved and 0.99 < result.x[:, 0].max() < 1.01
+    assert result.converged and 0.99 < result.x[:, 0].max() < 1.01
 
 
 @pytest.mark.parametrize("direction", ["gauss-newton", "native"])
@@ -86,7 +86,7 @@ def test_a_nan_trial_point_is_rejected_not_a_failure(direction):
     assert result.status != "failed"
     assert np.all(np.isfinite(result.x)) and result.x[:, 0].max() <= 1.5
     if direction == "gauss-newton":
-        assert result.solved
+        assert result.converged
 
 
 def _located(message: str, model: InclusionModel) -> tuple[int, float, dict[str, float]]:
