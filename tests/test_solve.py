@@ -264,7 +264,7 @@ class _ShortSteps(qdframe.directions.gauss_newton.GaussNewton):
         return dataclasses.replace(full, step=self.fraction * full.step, slope=self.fraction * full.slope)
 
 
-@pytest.mark.parametrize("fraction, status", [(0.1, "solved"), (0.03, "stationary")])
+@pytest.mark.parametrize("fraction, status", [(0.1, "uncertified"), (0.03, "stationary")])  # estimate=False: no certificate
 def test_with_i_below_tol_the_descent_goes_on_while_the_pointwise_checks_shrink_4x_every_40_iterations(fraction, status):
     class Nearly72(type(qdframe.load_model("paper-7.2"))):
         def initial_guess(self, t):  # a solution, but x off ∫z by 1e-6 at one node: I ≈ 1e-14 ≤ tol

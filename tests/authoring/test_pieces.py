@@ -46,4 +46,4 @@ class BrakedCart(InclusionModel):
 
 def test_a_model_of_ready_made_pieces_checks_and_solves():
     assert check_model(BrakedCart(), samples=16).ok
-    assert qdframe.solve(BrakedCart(), nodes=51).status == "solved"
+    assert qdframe.solve(BrakedCart(), nodes=51).converged

@@ -26,7 +26,7 @@ def test_one_model_adaptive_meets_the_target_and_the_uniform_ladders_reach_it():
     assert row.error <= row.target and row.met and row.estimate_holds
     assert [u.scheme for u in row.uniform] == ["radau-iia", "implicit-euler"]
     for u in row.uniform:
-        assert u.reached and u.error <= 1e-4 and u.nodes in ladder_nodes(u.scheme) and u.status == "solved"
+        assert u.reached and u.error <= 1e-4 and u.nodes in ladder_nodes(u.scheme) and u.status in ("solved", "uncertified")
     radau = row.uniform[0]
     nodes_ratio, time_ratio = row.ratios()
     assert nodes_ratio == radau.nodes / row.nodes and time_ratio == radau.seconds / row.seconds
