@@ -174,6 +174,8 @@ def _knob_order(row: dict) -> float:
     """Coarse to fine along a solver's line: N ascending, targets and tolerances descending."""
     knob = str(row.get("knob") or f"N={row['nodes']}")
     name, _, value = knob.partition("=")
+    if not value:  # the default call: one point of its own, after the knobs
+        return math.inf
     return float(value) if name == "N" else -math.log10(float(value))
 
 

@@ -265,6 +265,7 @@ def plan(
     peer_grids = grids if nodes is not None or spec.peer_grids is None else spec.peer_grids
     targets = tuple(accuracy) if accuracy is not None else spec.accuracy
     tols = tuple(bvp_tols) if bvp_tols is not None else spec.bvp_tols
+    default_budget = DEFAULT_MAX_ITER if max_iter is None else max_iter  # the default call's row: solve()'s own
     max_iter = spec.max_iter if max_iter is None else max_iter
     time_limit_s = spec.time_limit_s if time_limit_s is None else time_limit_s
     cases = []
@@ -283,7 +284,7 @@ def plan(
                 search = _default_line_search(direction)
                 cases += [Case(model, direction, search, None, max_iter, time_limit_s, accuracy=float(e))
                           for e in targets]
-                cases.append(Case(model, direction, search, None, DEFAULT_MAX_ITER, time_limit_s, default=True))
+                cases.append(Case(model, direction, search, None, default_budget, time_limit_s, default=True))
     if peers:
         for model in models:
             if model in PEER_MODELS["nosnoc"]:
@@ -621,7 +622,7 @@ def _csv_cell(value) -> str:
 
 
 INT_FIELDS = {"nodes", "iterations", "max_iter"}
-TEXT_FIELDS = {"model", "solver", "direction", "line_search", "knob", "status", "reference_kind", "claim",
+TEXT_FIELDS = {"model", "solver", "direction", "line_search", "knob", "status", "reference_kind", "claim", "certificate",
                "machine", "started_at", "message"}
 
 
