@@ -34,5 +34,5 @@ class HeatedRoom(SetModel):
 if __name__ == "__main__":
     model = HeatedRoom()
     print(check_model(model).table())
-    result = qdframe.solve(model, nodes=201)
+    result = qdframe.solve(model)
     print(result.summary())

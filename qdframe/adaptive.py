@@ -55,22 +55,22 @@ class Certified:
 
 
 def _timed(functional: Functional, result: SolveResult, companion: Resolve, certificate: str | None,
-           spent: list[float]) -> Estimate:
-    """:func:`estimate`, its time added to `spent`."""
+           spent: list[float], target: float | None) -> Estimate:
+    """:func:`estimate` against `target`, its time added to `spent`."""
     clock = time.perf_counter()
     try:
-        return estimate(functional, result, companion, certificate)
+        return estimate(functional, result, companion, certificate, target)
     finally:
         spent.append(time.perf_counter() - clock)
 
 
 def on_fixed_grid(functional: Functional, result: SolveResult, companion: Resolve, certificate: str | None,
-                  wanted: bool) -> Certified:
-    """The estimate of a fixed-grid result (none when not `wanted` or not solved)."""
+                  wanted: bool, accuracy: float) -> Certified:
+    """The estimate of a fixed-grid result against `accuracy` (none when not `wanted` or not solved)."""
     if not wanted:
         return Certified(functional, result, Estimate(None, None, detail="no error estimate: estimate=False"))
     spent: list[float] = []
-    found = _timed(functional, result, companion, certificate, spent)
+    found = _timed(functional, result, companion, certificate, spent, tolerance(accuracy, result))
     return Certified(functional, result, found, seconds=sum(spent))
 
 
@@ -100,11 +100,11 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
     note, spent = "", []
     while result.status == "solved":
         functional, result = settle_switches(functional, result, own)
-        found = _timed(functional, result, companion, certificate, spent)
+        target = tolerance(accuracy, result)
+        found = _timed(functional, result, companion, certificate, spent, target)
         if found.value is None:
             note = f"no error estimate on {functional.grid.nodes} points: {found.detail}"
             break
-        target = tolerance(accuracy, result)
         if best is None or found.value < best.estimate.value:  # type: ignore[operator]
             best = Certified(functional, result, found)
         if found.value <= target:

@@ -322,7 +322,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
     if accuracy is not None:
         outcome = adaptive.to_accuracy(functional, result, own, companion, accuracy, scheme, certificate, max_nodes)
     else:
-        outcome = adaptive.on_fixed_grid(functional, result, companion, certificate, wanted)
+        outcome = adaptive.on_fixed_grid(functional, result, companion, certificate, wanted, target)
     functional, result, found = outcome.functional, outcome.result, outcome.estimate
     result.history = history
     result.error_estimate = found.value

@@ -338,7 +338,7 @@ def model_system(functional, controls: Input | None = None, choice: Input | None
         for k, switch in enumerate(switches):
             value, gradient = switch(y)
             s[k], ds[k] = value[0], gradient[0, :n]
-        if not (np.all(np.isfinite(g)) and np.all(np.isfinite(B)) and np.all(np.isfinite(s)) and np.all(np.isfinite(ds))):
+        if not np.isfinite(g.sum() + B.sum() + s.sum() + ds.sum()):
             raise FilippovError(f"{model.name}: the model is non-finite at t = {t:.6g}, x = {np.array2string(x)}")
         return Fields(g, B, s, ds)
 
@@ -360,12 +360,12 @@ class _Interval:
         lo = hi = 0.0
         for group in self.block.max_groups:
             f = group.pieces(y)[0][0, :, 0]
-            lo, hi = lo + float(np.min(f)), hi + float(np.max(f))
+            lo, hi = lo + float(f.min()), hi + float(f.max())
         if self.block.min_groups:
             both = np.repeat(y, 2, axis=0)
             for group in self.block.min_groups:
                 g = group.values(both, self.PSI) if group.values is not None else group.pieces(both, self.PSI)[0]
-                lo, hi = lo - float(np.min(g[1])), hi + float(np.min(g[0]))
+                lo, hi = lo - float(g[1].min()), hi + float(g[0].min())
         return lo, hi
 
 
@@ -373,4 +373,4 @@ def _amplitude(term, y: np.ndarray) -> float:
     """a(y) = Σ_i max_q a_iq(y) of a sign term at one point."""
     if isinstance(term.amplitude, (int, float)):
         return float(term.amplitude)
-    return sum(float(np.max(group(y)[0])) for group in term.amplitude)
+    return sum(float(group(y)[0].max()) for group in term.amplitude)

@@ -355,23 +355,31 @@ def _work_precision(out: Outcome) -> None:
 
 def _compare_directions(models: set[str], nodes: set[int]) -> Callable[[Outcome], None]:
     def check(out: Outcome) -> None:
-        """README: gauss-newton solves 7.1 and 7.2 at every N and 7.3 from N = 101 (at N = 11
-        with the band and the trapezoid rule too); the paper's method solves none of them."""
+        """README: gauss-newton solves the discrete problems of 7.1 and 7.2 at every N and of
+        7.3 from N = 101 (at N = 11 with the band and the trapezoid rule too); the paper's
+        method solves none of them. 7.3's solutions form a set: on a fixed grid its estimate
+        stays above the target, so its solved discrete problems are `uncertified`."""
         rows = _table(out.stdout)
         assert {r["model"] for r in rows} == models and {int(r["N"]) for r in rows} == nodes
         for row in rows:
             if row["direction"] == "native":
-                assert row["status"] != "solved", row
+                assert row["status"] not in (Status.SOLVED, Status.UNCERTIFIED), row
             elif row["model"] != "paper-7.3" or int(row["N"]) >= 101:
-                assert row["status"] == "solved" and _number(row["boundary error"]) <= 1e-8, row
+                assert _discrete_solved(row), row
     return check
+
+
+def _discrete_solved(row: dict) -> bool:
+    """A table row whose discrete problem is solved: `solved`, or `uncertified` for 7.3."""
+    wanted = {Status.SOLVED, Status.UNCERTIFIED} if row["model"] == "paper-7.3" else {Status.SOLVED}
+    return row["status"] in wanted and _number(row["boundary error"]) <= 1e-8
 
 
 def _band_73(out: Outcome) -> None:
     rows = _table(out.stdout)
     assert [int(r["N"]) for r in rows] == [11, 101, 1001]
-    for row in rows:  # README: the band on the trapezoid rule solves 7.3 at every N
-        assert row["status"] == "solved" and _number(row["boundary error"]) <= 1e-8, row
+    for row in rows:  # README: the band on the trapezoid rule solves 7.3's discrete problem at every N
+        assert _discrete_solved(row), row
 
 
 def _solve_paper(out: Outcome) -> None:

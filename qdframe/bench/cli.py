@@ -81,7 +81,8 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
                      help="every direction with each of these (default: each direction's own; full: all)")
     run.add_argument("--nodes", type=node_counts, metavar="N,..", help="every solver's grids (default: the suite's)")
     run.add_argument("--accuracy", type=tolerances, metavar="E,..",
-                     help="gauss-newton's accuracy= targets (default: the suite's; 'none' for none)")
+                     help="gauss-newton's accuracy= targets, each with a row for qdframe.solve(model) as a user calls it "
+                          "(default: the suite's; 'none' for none, and no default row)")
     run.add_argument("--bvp-tols", type=tolerances, metavar="E,..",
                      help="solve_bvp's tol ladder (default: the suite's; 'none' for none)")
     run.add_argument("--peers", action="store_true",

@@ -75,12 +75,13 @@ def judge(
     switch_times: Sequence[float] | None = None,
     inputs: Callable[[float], np.ndarray] | None = None,
     velocity: Callable[[np.ndarray], Callable[[float], np.ndarray]] | None = None,
+    selections: np.ndarray | None = None,
 ) -> Judgement:
     """Judge the trajectory (t, x, z, u) of `model`. For an events replay, `inputs` is the
     peer's own input u(t); else the input is recovered at the points t from the trajectory
-    (:data:`INPUTS`) and continued between them by `velocity` (values at t ↦ a function of
-    time: the scheme's own rule for x', :meth:`~qdframe.schemes.base.Scheme.velocity`;
-    default piecewise linear)."""
+    (:data:`INPUTS`, from the trajectory's own `selections` λ (N, p) where it has them) and
+    continued between them by `velocity` (values at t ↦ a function of time: the scheme's own
+    rule for x', :meth:`~qdframe.schemes.base.Scheme.velocity`; default piecewise linear)."""
     start = time.perf_counter()
     t, x, z = np.asarray(t, float), np.asarray(x, float), np.asarray(z, float)
     which = kind(model)
@@ -96,7 +97,7 @@ def judge(
         best = None
         for label, rule, breaks in ([("the peer's own input", None, ())] if inputs is not None
                                     else continuations(t, velocity)):
-            drive = inputs if rule is None else _Drive(rule, INPUTS[model.name](x, z, u, model), breaks)
+            drive = inputs if rule is None else _Drive(rule, INPUTS[model.name](x, z, u, model, selections), breaks)
             try:
                 reference = integrate(statement(model, drive), x[0], float(t[-1]))(t)
             except FilippovError as exc:
@@ -117,7 +118,7 @@ def judge(
                   + ", DOP853 rtol = atol = 1e-12 with event location")
         return Judgement(max(error, miss), error, miss, _switch_error(model, switch_times), EVENTS, None,
                          time.perf_counter() - start, recipe)
-    from .replay import replay
+    from ..projection_replay import replay
 
     runs = [(label, replay(model, t, x, z, u, continuation=None if label == "linear" else rule))
             for label, rule, _ in continuations(t, velocity)]
@@ -213,20 +214,24 @@ def _interpolated(t: np.ndarray, values: np.ndarray) -> Callable[[float], np.nda
     return drive
 
 
-def _coulomb_force(x, z, u, model) -> np.ndarray:
-    """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·sign(v), ±U), sign(v) = 0 at rest
-    (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)."""
-    velocity = x[:, 1]
-    sign = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
+def _coulomb_force(x, z, u, model, selections=None) -> np.ndarray:
+    """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·σ, ±U), σ the trajectory's own
+    selection where it gives one (the model's term is F·λ with λ ∈ Sgn(−v): σ = −λ), else
+    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)."""
+    if selections is not None:
+        sign = -np.asarray(selections, float)[:, 0]
+    else:
+        velocity = x[:, 1]
+        sign = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
     return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
 
 
-def _sliding_inputs(x, z, u, model) -> np.ndarray:
+def _sliding_inputs(x, z, u, model, selections=None) -> np.ndarray:
     """v' = w with |w_i| ≤ 10: w = clip(z_v, ±10)."""
     return np.clip(z[:, 2:4], -model.input_bound, model.input_bound)
 
 
-def _paper_control(x, z, u, model) -> np.ndarray:
+def _paper_control(x, z, u, model, selections=None) -> np.ndarray:
     """Example 7.3's control u, a column of the trajectory itself."""
     if u is None or np.size(u) == 0:
         raise ValueError("paper-7.3: a trajectory without its control u cannot be replayed")

@@ -101,7 +101,7 @@ class Suite:
 STANDARD_MODELS = PAPER_MODELS + PLUGIN_MODELS + FRICTION_MODELS + PEER_PROBLEMS + LONG_HORIZON
 SUITES = {
     "quick": Suite("quick", ("paper-7.1", "block-stop-stick", "slide-after-reaching") + PEER_PROBLEMS, 2,
-                   (11, 41, 161), max_iter=100, time_limit_s=30.0, accuracy=(1e-3, 1e-6), other_grids=(11, 41),
+                   (11, 41, 161), max_iter=100, time_limit_s=30.0, accuracy=(1e-3,), other_grids=(11, 41),
                    peer_grids=(11, 41), bvp_tols=(1e-3, 1e-6)),
     "standard": Suite("standard", STANDARD_MODELS, 2, (11, 101, 1001, 10001, 100001), max_iter=500,
                       time_limit_s=30.0, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101),
@@ -284,7 +284,8 @@ def plan(
                 search = _default_line_search(direction)
                 cases += [Case(model, direction, search, None, max_iter, time_limit_s, accuracy=float(e))
                           for e in targets]
-                cases.append(Case(model, direction, search, None, default_budget, time_limit_s, default=True))
+                if targets:  # the default call is an accuracy= run of its own: `--accuracy none` drops it too
+                    cases.append(Case(model, direction, search, None, default_budget, time_limit_s, default=True))
     if peers:
         for model in models:
             if model in PEER_MODELS["nosnoc"]:
@@ -433,7 +434,7 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
             history[name].append(getattr(record, name))
     _residual_error(row)
     _judge(row, model, result.t, result.x, result.z, result.u, switch_times=result.switch_times,
-           velocity=scheme_velocity(result))
+           velocity=scheme_velocity(result), selections=result.selections)
 
 
 def scheme_velocity(result) -> Callable[[np.ndarray], Callable[[float], np.ndarray]]:
@@ -495,10 +496,12 @@ def _residual_error(row: dict) -> None:
     row["residual_error"] = float(max(parts))
 
 
-def _judge(row: dict, model: InclusionModel, t, x, z, u, switch_times=None, inputs=None, velocity=None) -> None:
+def _judge(row: dict, model: InclusionModel, t, x, z, u, switch_times=None, inputs=None, velocity=None,
+           selections=None) -> None:
     """The row's error against the model's reference (:func:`~.references.judge`)."""
     try:
-        verdict = judge(model, t, x, z, u, switch_times=switch_times, inputs=inputs, velocity=velocity)
+        verdict = judge(model, t, x, z, u, switch_times=switch_times, inputs=inputs, velocity=velocity,
+                        selections=selections)
     except Exception as exc:  # a reference that cannot be made leaves the error unknown, and says why
         row["message"] = "; ".join(filter(None, [row["message"], f"no reference error: {type(exc).__name__}: {exc}"]))
         return
