@@ -347,6 +347,9 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
             note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
             if found.detail:
                 note = _join(note, found.detail)
+            if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
+                result.switch_times = switches.polish(result.switch_times, found.switch_times,
+                                                      functional.grid.mesh_times)
     result.options = {**result.options, "estimate_time_s": outcome.seconds}
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}

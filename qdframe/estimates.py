@@ -70,6 +70,7 @@ class Estimate:
     detail: str = ""
     companion: SolveResult | None = None
     reference: np.ndarray | None = None
+    switch_times: tuple[float, ...] | None = None  # the replayed motion's, where that motion is the solution (an IVP)
 
 
 def solutions_form_a_set(functional: Functional) -> bool:
@@ -182,7 +183,9 @@ def replay(functional: Functional, result: SolveResult) -> Estimate:
     scale = max(1.0, float(np.max(np.abs(result.x))))
     value = float(np.max(np.abs(difference))) + miss + uncertainty + ROUNDING * scale
     detail = f"the true motion from x(0) misses the conditions by {miss:.1e}" if miss else ""
-    return Estimate(value, _local(grid, difference, 1.0), REPLAY, detail, reference=reference)
+    solution = not inputs and initial_value_problem(exact)  # the replayed motion is the solution itself
+    return Estimate(value, _local(grid, difference, 1.0), REPLAY, detail, reference=reference,
+                    switch_times=tuple(motion.switch_times) if solution else None)
 
 
 def _local(grid: Grid, difference: np.ndarray, factor: float) -> np.ndarray:

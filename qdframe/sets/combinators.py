@@ -41,6 +41,9 @@ class Sum(Set):
     def polytope(self):
         return _cartesian_sum([_role(s, "polytope", self.label) for s in self.sets], self.label)
 
+    def component(self, index: int) -> Set:
+        return Sum(*(_role(s, "component", self.label, index) for s in self.sets))
+
     def formulas(self, psi):
         parts = [_role(s, "formulas", self.label, psi) for s in self.sets]
         if int(np.prod([len(p) for p in parts])) > 64:
@@ -187,6 +190,9 @@ class Scaled(Set):
         if support.mins or support.signs:
             raise _NotHere("not a polytope")
         return _cartesian_sum([vs for _, vs in support.polytopes], self.label)
+
+    def component(self, index: int) -> Set:
+        return Scaled(_role(self.inner, "component", self.label, index), self.factor)
 
     def formulas(self, psi):
         c = self._number()

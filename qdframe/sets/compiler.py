@@ -17,9 +17,10 @@ import numpy as np
 import sympy as sp
 
 from ..errors import InputError
-from ..model import Cost, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
-from .base import _Support, as_set
-from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _s, _smooth, _vector
+from ..model import BallSwitch, Cost, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
+from .base import _NotHere, _Support, as_set
+from .primitives import BallArgument, WholeVectorSign
+from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _refuse_singular, _s, _smooth, _vector
 
 
 def _scalar_groups(expr: sp.Expr, where: str, allow_min: bool) -> tuple[list[list[sp.Expr]], list[list[sp.Expr]]]:
@@ -31,6 +32,7 @@ def _scalar_groups(expr: sp.Expr, where: str, allow_min: bool) -> tuple[list[lis
     allowed = "smooth terms, c·|e| and c·Max(e_1, …)" + (", c·Min(e_1, …)" if allow_min else " with c > 0")
     for term in terms:
         if not any(term.has(f) for f in _NONSMOOTH):
+            _refuse_singular(term, where)
             smooth.append(term)
             continue
         coeff, rest = term.as_coeff_Mul()
@@ -136,9 +138,24 @@ class _Switches:
         terms = _coefficients(expr)
         for reference, switch in self.known:
             ratio = _ratio(terms, reference)
-            if ratio is not None:
+            if ratio is not None and not isinstance(switch, BallSwitch):
                 return switch, 1.0 if ratio > 0 else -1.0
         switch = _switch_cached(sp.expand(expr), self.symbols)
+        self.known.append((terms, switch))
+        return switch, 1.0
+
+    def find_ball(self, exprs: tuple[sp.Expr, ...]) -> tuple[BallSwitch, float]:
+        """The :class:`~qdframe.model.BallSwitch` of the vector switch s = `exprs`: one per
+        vector surface, shared by c·s for a constant c ≠ 0 with the sign of c (Sgn(c·s) =
+        sign(c)·Sgn(s) for the vector sign too)."""
+        terms = {(j, key): value for j, e in enumerate(exprs) for key, value in _coefficients(e).items()}
+        for reference, switch in self.known:
+            ratio = _ratio(terms, reference)
+            if ratio is not None and isinstance(switch, BallSwitch):
+                return switch, 1.0 if ratio > 0 else -1.0
+        expanded = tuple(sp.expand(e) for e in exprs)
+        vectorized = _Vectorized(list(expanded), self.symbols)
+        switch = BallSwitch(lambda y: vectorized(y), len(expanded), f"Sgn({', '.join(_s(e) for e in expanded)})")
         self.known.append((terms, switch))
         return switch, 1.0
 
@@ -185,9 +202,23 @@ class Compiled:
 def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, switches: _Switches,
                where: str) -> SignTerm:
     """a·Sgn(s) = |a|·Sgn(±s) as sense·|a|·Sgn(s0), s0 the model's switch that ±s is a
-    constant multiple of (the first term on a surface has sense +1: its |a|·Sgn(±s) as written)."""
+    constant multiple of (the first term on a surface has sense +1: its |a|·Sgn(±s) as written).
+    A vector sign's component, a·λ_j with λ ∈ Sgn(s) ⊂ B: sense·|a|·λ_j on the shared
+    :class:`~qdframe.model.BallSwitch` of s, sense the sign of a times that of the multiple."""
     amplitude = sp.sympify(amplitude)
     name = label if amplitude == 1 else f"({_s(amplitude)})·{label}" if amplitude.is_Add else f"{_s(amplitude)}·{label}"
+    if isinstance(switch, BallArgument):
+        ball, sense = switches.find_ball(switch.switch)
+        if amplitude.is_number:
+            value: float | tuple = abs(float(amplitude))
+            sense *= 1.0 if float(amplitude) >= 0 else -1.0
+        else:
+            terms = sp.Add.make_args(sp.expand(amplitude, deep=False))
+            if all(t.as_coeff_Mul()[0] < 0 for t in terms):  # −a·λ_j: sense −1
+                amplitude, sense = -amplitude, -sense
+            maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
+            value = tuple(_scalar_pieces(group, switches.symbols) for group in maxes)
+        return SignTerm(value, ball, band, name, sense, switch.component)
     if amplitude.is_number:
         a = float(amplitude)
         value: float | tuple = abs(a)
@@ -227,20 +258,24 @@ def compile_sets(
         name = "F[" + ", ".join(str(states[c]) for c in coords) + "]"
         f = as_set(value)
         if f.dim != len(coords):
-            raise SetStructureError(f"{model} {name} = {f.label}", f"a set in R^{len(coords)}", f"a set in R^{f.dim}")
-        support = f.support().merged()
-        used = set().union(*(e.free_symbols for e in _all_exprs(support))) if _all_exprs(support) else set()
-        psi_used = {s for s in used if s in _psi(f.dim)}
-        unknown = used - set(symbols) - psi_used
-        if unknown:
-            raise InputError(f"{model} {name}", f"formulas in the states and controls {', '.join(map(str, symbols))}",
-                             ", ".join(sorted(map(str, unknown))))
-        if support.signs and f.dim != 1:
-            raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
-        max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
-        min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
-        signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs)
-        blocks.append(SetBlock(tuple(coords), max_groups, min_groups, name, signs))
+            hint = (f"; a vector sign Sgn(v1, …) is a set in R^{f.dim}: use its coordinates, S = {f.label} and "
+                    f"S[0], S[1], … in one-coordinate blocks, or the whole in a block of {f.dim} coordinates"
+                    if _has_vector_sign(f) else "")
+            raise SetStructureError(f"{model} {name} = {f.label}", f"a set in R^{len(coords)}{hint}",
+                                    f"a set in R^{f.dim}")
+        if len(coords) > 1 and _has_vector_sign(f):  # a vector sign: one block per coordinate, λ shared
+            for i, c in enumerate(coords):
+                try:
+                    part = f.component(i)
+                except _NotHere as exc:
+                    raise SetStructureError(
+                        f"{model} {name} = {f.label}",
+                        "with a vector sign, a block of several coordinates whose coordinates are sets of their own "
+                        "(a point plus scalings of Sgn(v1, …), boxes): or write each coordinate's set, "
+                        "{v1: f1 - mu*S[0], v2: f2 - mu*S[1]} with S = Sgn(v1, v2)", exc.what) from None
+                blocks.append(_compile_block(part, (c,), f"F[{states[c]}]", symbols, switches, model))
+            continue
+        blocks.append(_compile_block(f, tuple(coords), name, symbols, switches, model))
     compiled_surface = None
     if surface is not None:
         formulas = _vector(surface, f"{model} surface")
@@ -259,8 +294,33 @@ def compile_sets(
     return Compiled(tuple(blocks), compiled_surface, compiled_cost)
 
 
+def _compile_block(f, coords: tuple[int, ...], name: str, symbols: tuple, switches: _Switches, model: str) -> SetBlock:
+    """One block's set in its normal form as a :class:`~qdframe.model.SetBlock`."""
+    support = f.support().merged()
+    used = set().union(*(e.free_symbols for e in _all_exprs(support))) if _all_exprs(support) else set()
+    psi_used = {s for s in used if s in _psi(f.dim)}
+    unknown = used - set(symbols) - psi_used
+    if unknown:
+        raise InputError(f"{model} {name}", f"formulas in the states and controls {', '.join(map(str, symbols))}",
+                         ", ".join(sorted(map(str, unknown))))
+    if support.signs and f.dim != 1:
+        raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
+    max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
+    min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
+    signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs)
+    return SetBlock(coords, max_groups, min_groups, name, signs)
+
+
+def _has_vector_sign(f) -> bool:
+    """Whether a set's normal form holds a whole vector sign (a block of several coordinates to split)."""
+    return any(isinstance(s, WholeVectorSign) for _, _, s, _ in f.support().signs)
+
+
 def _all_exprs(support: _Support) -> list[sp.Expr]:
     out = [v for _, vs in support.polytopes for vertex in vs for v in vertex]
     out += [g for _, gs in support.mins for g in gs]
-    out += [e for _, a, s, _ in support.signs for e in (sp.sympify(a), s)]
+    for _, a, s, _ in support.signs:
+        out.append(sp.sympify(a))
+        out += list(s.switch) if isinstance(s, BallArgument) else list(s.sign.switch) if isinstance(s, WholeVectorSign) \
+            else [s]
     return out
