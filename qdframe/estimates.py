@@ -80,9 +80,9 @@ def solutions_form_a_set(functional: Functional) -> bool:
         return False
     if functional.m:
         return True
-    probe = np.zeros((1, functional.dim))
-    probe[0, : functional.n] = np.nan_to_num(functional.model.x0)
     exact = functional if functional.signs == "exact" else like(functional, functional.grid, "exact")
+    probe = np.zeros((1, exact.dim))  # exact's layout: with signs="band" the functional has no selections
+    probe[0, : functional.n] = np.nan_to_num(functional.model.x0)
     return any(not sides.equation for sides in exact.distance_sides(probe))
 
 

@@ -326,15 +326,16 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     aims = _aims(fields(t, x), mode, balls, {})
     starts, pieces, switches, modes = [], [], [], [(t, mode)]
     events = stalls = 0
+    left: dict[int, float] = {}  # when each vector sign last began to leave rest
     while t < T:
         stop = next(s for s in stops if s > t)
         inside = _inside(t, stop)
         current, aimed = mode, dict(aims)
         scale = max(1.0, float(np.max(np.abs(x), initial=0.0)))
+        method, until = _method(fields(inside(t), x), current, balls, scale, aimed, t, left)
         watched = _events(fields, current, inside, balls, aimed, scale)
-        run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, stop), x,
-                        method=_method(fields(inside(t), x), current, balls, scale), rtol=rtol, atol=atol,
-                        dense_output=True, events=[e for e, _ in watched])
+        run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, min(until, stop)),
+                        x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched])
         if run.status == -1:
             raise FilippovError(f"{system.name}: DOP853 failed at t = {run.t[-1]:.17g} in mode {mode}: {run.message}")
         end = float(run.t[-1])
@@ -369,6 +370,8 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
                 switched = False
             else:  # a moving vector sign turned (or ⟨s, aim⟩ = 0 away from s = 0): a new aim
                 new, switched = mode, False
+        elif t < stop:  # the end of a stiff start (_method): on by DOP853
+            new, switched = mode, False
         elif t < T:  # a break in the drift: choose afresh just after it
             new = choose_mode(fields(_inside(t, next(s for s in stops if s > t))(t), x), x, mode,
                               name=system.name, t=t, balls=balls, aims=aims)
@@ -379,6 +382,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
             if switched:
                 switches.append(t)
             modes.append((t, new))
+        left.update({a: t for a, _ in balls if new[a] == LEAVING and mode[a] != LEAVING})
         mode = new
     if not pieces:
         raise FilippovError(f"{system.name}: nothing integrated over [{t0}, {T}]")
@@ -386,15 +390,27 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
                               time.perf_counter() - clock)
 
 
-def _method(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]], scale: float) -> str:
-    """DOP853, or Radau IIA (implicit) for a piece where a vector sign moves from |s| <
-    STIFF_RADIUS·max(1, |x|): s/|s| turns back to its slow direction at a rate ~|∇s·B|/|s|, so
-    just after a break-away (|s| ~ τ²) an explicit method needs steps ~|s| (≈ 600 DOP853 steps
-    on isotropic-puck), an implicit one steps of the motion's own scale."""
+def _method(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]], scale: float,
+            aims: dict[int, np.ndarray], t: float, left: dict[int, float]) -> tuple[str, float]:
+    """The method of the next piece and the time it ends by: DOP853 to the next event, or Radau
+    IIA (implicit) where a vector sign moves away from rest with |s| < STIFF_RADIUS·max(1, |x|)/2.
+    There s/|s| turns back to its slow direction at a rate ~|∇s·B|/|s|, so just after a
+    break-away (|s| ~ τ², τ the time since it began to leave) an explicit method needs steps
+    ~|s| (≈ 600 DOP853 steps on isotropic-puck), an implicit one steps of the motion's own
+    scale. The Radau piece ends at the time |s| should reach STIFF_RADIUS·max(1, |x|) (τ grown
+    by √(STIFF_RADIUS·max(1, |x|)/|s|)), a step's end: SciPy's Radau is less accurate than
+    DOP853 at tight tolerances once its steps grow, and its interpolant (at an event) more so."""
+    try:
+        f = velocity(fields, mode, balls, aims)[0]
+    except np.linalg.LinAlgError:
+        return "DOP853", np.inf
     for a, k in balls:
-        if mode[a] == MOVING and np.linalg.norm(fields.s[a : a + k]) < STIFF_RADIUS * scale:
-            return "Radau"
-    return "DOP853"
+        part = fields.s[a : a + k]
+        radius = float(np.linalg.norm(part))
+        if mode[a] == MOVING and radius < 0.5 * STIFF_RADIUS * scale and part @ (fields.ds[a : a + k] @ f) > 0:
+            since = t - left.get(a, t)
+            return "Radau", t + since * (np.sqrt(STIFF_RADIUS * scale / max(radius, 1e-300)) - 1.0) if since > 0 else np.inf
+    return "DOP853", np.inf
 
 
 def _width(balls: Sequence[tuple[int, int]], first: int) -> int:

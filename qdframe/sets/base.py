@@ -148,7 +148,8 @@ def as_set(value: Any, dim: int | None = None) -> Set:
         return value
     point = Point(value)
     if dim is not None and point.dim != dim and point.dim == 1 and dim > 1:
-        raise SetStructureError(f"{point.label} + a set in R^{dim}", f"a point with {dim} coordinates")
+        raise SetStructureError(f"{point.label} + a set in R^{dim}", f"a point with {dim} coordinates (a tuple), or a "
+                                f"set in R: of a set in R^{dim} such as the vector sign S = Sgn(v1, v2), a coordinate S[i]")
     return point
 
 

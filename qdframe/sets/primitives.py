@@ -223,11 +223,11 @@ class VectorSgn(Set):
         items = tuple(switches[0]) if len(switches) == 1 and isinstance(switches[0], _SEQUENCES) else switches
         self.argument = _vector(items, "Sgn argument")
         k = len(self.argument)
+        written = f"Sgn({', '.join(_s(e) for e in self.argument)})"
         if k < 2:
-            raise SetStructureError(f"Sgn({_text(self.argument)})", "two or more arguments for a vector sign "
-                                    "(one: the scalar Sgn(s))")
+            raise SetStructureError(written, "two or more arguments for a vector sign (one: the scalar Sgn(s))")
         if not (float(band) >= 0):
-            raise SetStructureError(f"Sgn({_text(self.argument)}) band", "a number ≥ 0 (inf allowed)", band)
+            raise SetStructureError(f"{written} band", "a number ≥ 0 (inf allowed)", band)
         self.band = float(band)
         if matrix is None:
             self.matrix = np.eye(k)
@@ -235,19 +235,19 @@ class VectorSgn(Set):
             try:
                 self.matrix = np.array(matrix, dtype=float)
             except (TypeError, ValueError):
-                raise SetStructureError(f"Sgn({_text(self.argument)}) matrix", f"a matrix of numbers with {k} columns",
+                raise SetStructureError(f"{written} matrix", f"a matrix of numbers with {k} columns",
                                         matrix) from None
             if self.matrix.ndim != 2 or self.matrix.shape[1] != k or self.matrix.shape[0] < 2 \
                     or not np.all(np.isfinite(self.matrix)):
-                raise SetStructureError(f"Sgn({_text(self.argument)}) matrix",
+                raise SetStructureError(f"{written} matrix",
                                         f"a finite k' × {k} matrix of numbers, k' ≥ 2", self.matrix.tolist())
         self.switch = tuple(sp.expand(sp.Add(*(_number(w) * v for w, v in zip(row, self.argument) if w != 0)))
                             for row in self.matrix)
         if any(e == 0 for e in self.switch):
-            raise SetStructureError(f"Sgn({_text(self.argument)}) matrix", "rows that are not zero", self.matrix.tolist())
+            raise SetStructureError(f"{written} matrix", "rows that are not zero", self.matrix.tolist())
         self.dim = k
         self.label = f"Sgn({', '.join(_s(e) for e in self.switch)})" if matrix is None else \
-            f"Sgn({_text(self.argument)}; matrix={self.matrix.tolist()})"
+            f"{written[:-1]}; matrix={self.matrix.tolist()})"
         self.switch_label = f"Sgn({', '.join(_s(e) for e in self.switch)})"
 
     def __getitem__(self, index: int) -> Set:
