@@ -20,6 +20,12 @@ in λ units (ds_i/dt divided by |∇s_i·B_i|), so that at a transversal crossin
 attractive surface exactly one mode has a non-negative margin (Filippov's rule: attractive
 → slide, transversal → cross); the mode of largest smallest margin is taken.
 
+A vector sign (isotropic friction, `balls`: k consecutive switches s ∈ R^k with one
+selection vector λ ∈ B) has two regimes: MOVING, λ = s/|s|, and stuck (mode 0) on s = 0 with
+λ the equivalent control, which the same linear solve gives; it stops where s reaches 0
+along a line, breaks away where |λ_eq| reaches 1 and leaves in the quasi-static direction
+(:func:`quasi_static`), consistent with s/|s| to first order in the time since.
+
 :func:`model_system` states a qdframe model in this form (its equations and sets as the
 drift, its sign terms as B and s, the sets' choice and the controls as inputs of time);
 the error certificate by replay (:mod:`qdframe.estimates`), the default start of a solve

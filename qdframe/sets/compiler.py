@@ -256,7 +256,10 @@ def compile_sets(
                 raise InputError(f"{model}.sets", f"keys that are states ({', '.join(map(str, states))}) or tuples of them", k)
             coords.append(index[k])
         name = "F[" + ", ".join(str(states[c]) for c in coords) + "]"
-        f = as_set(value)
+        try:
+            f = as_set(value)
+        except SetStructureError as exc:  # a formula refused where it became a point: name the model and block
+            raise SetStructureError(f"{model} {name} ({exc.field})", exc.expected, exc.got) from None
         if f.dim != len(coords):
             hint = (f"; a vector sign Sgn(v1, …) is a set in R^{f.dim}: use its coordinates, S = {f.label} and "
                     f"S[0], S[1], … in one-coordinate blocks, or the whole in a block of {f.dim} coordinates"
