@@ -690,7 +690,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         z=z,
         u=functional.controls(xi) if functional.m else None,
         selections=functional.selections(xi) if functional.p else None,
-        selection_names=[term.name for _, term in functional.selection_terms],
+        selection_names=list(functional.selection_names),
         state_names=tuple(model.state_names),
         control_names=tuple(model.control_names),
         set_bounds=bounds,

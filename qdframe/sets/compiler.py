@@ -127,37 +127,55 @@ class _Switches:
     Sign terms on one surface share one Filippov selection (:class:`~qdframe.model.SignTerm`),
     and Sgn(c·s) = sign(c)·Sgn(s) for every constant c ≠ 0, so a switch that is a constant
     multiple of one seen before (−s, 2s, or 0.866·v1 − 0.5·v2 against −0.866·v1 + 0.5·v2)
-    is that one, with the sign of the multiple: :meth:`find` returns (callable, ±1).
+    is that one, with the sign of the multiple: :meth:`find` returns (callable, ±1). A vector
+    switch (:meth:`find_ball`) is one with another up to a constant factor and a signed
+    permutation of its components.
     """
 
     def __init__(self, symbols) -> None:
         self.symbols = tuple(symbols)
         self.known: list[tuple[dict, Callable]] = []
+        self.balls: list[tuple[list[dict], BallSwitch]] = []  # vector switches: each component's coefficients
 
     def find(self, expr: sp.Expr) -> tuple[Callable, float]:
         terms = _coefficients(expr)
         for reference, switch in self.known:
             ratio = _ratio(terms, reference)
-            if ratio is not None and not isinstance(switch, BallSwitch):
+            if ratio is not None:
                 return switch, 1.0 if ratio > 0 else -1.0
         switch = _switch_cached(sp.expand(expr), self.symbols)
         self.known.append((terms, switch))
         return switch, 1.0
 
-    def find_ball(self, exprs: tuple[sp.Expr, ...]) -> tuple[BallSwitch, float]:
-        """The :class:`~qdframe.model.BallSwitch` of the vector switch s = `exprs`: one per
-        vector surface, shared by c·s for a constant c ≠ 0 with the sign of c (Sgn(c·s) =
-        sign(c)·Sgn(s) for the vector sign too)."""
-        terms = {(j, key): value for j, e in enumerate(exprs) for key, value in _coefficients(e).items()}
-        for reference, switch in self.known:
-            ratio = _ratio(terms, reference)
-            if ratio is not None and isinstance(switch, BallSwitch):
-                return switch, 1.0 if ratio > 0 else -1.0
+    def find_ball(self, exprs: tuple[sp.Expr, ...]) -> tuple[BallSwitch, list[tuple[int, float]]]:
+        """The :class:`~qdframe.model.BallSwitch` of the vector switch s = `exprs`, and for each of
+        its components j the component of that switch's selection and the sign it enters with.
+        One vector surface, one selection: s' = c·P·s for a constant c > 0 and a signed
+        permutation P (Sgn(2·v), Sgn(−v) = −Sgn(v), Sgn(v2, v1)) is the switch s, and
+        Sgn(s')_j = ±Sgn(s)_π(j)."""
+        terms = [_coefficients(e) for e in exprs]
+        for reference, switch in self.balls:
+            if len(reference) != len(terms):
+                continue
+            mapping, scale = [], None
+            for own in terms:
+                found = [(i, _ratio(own, other)) for i, other in enumerate(reference)]
+                found = [(i, r) for i, r in found if r is not None and i not in [m for m, _ in mapping]]
+                if not found:
+                    break
+                i, ratio = found[0]
+                if scale is None:
+                    scale = abs(ratio)
+                if abs(abs(ratio) - scale) > SAME_SWITCH_RTOL * scale:
+                    break
+                mapping.append((i, 1.0 if ratio > 0 else -1.0))
+            else:
+                return switch, mapping
         expanded = tuple(sp.expand(e) for e in exprs)
         vectorized = _Vectorized(list(expanded), self.symbols)
         switch = BallSwitch(lambda y: vectorized(y), len(expanded), f"Sgn({', '.join(_s(e) for e in expanded)})")
-        self.known.append((terms, switch))
-        return switch, 1.0
+        self.balls.append((terms, switch))
+        return switch, [(j, 1.0) for j in range(len(expanded))]
 
 
 def _coefficients(expr: sp.Expr) -> dict:
@@ -208,7 +226,8 @@ def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, swi
     amplitude = sp.sympify(amplitude)
     name = label if amplitude == 1 else f"({_s(amplitude)})·{label}" if amplitude.is_Add else f"{_s(amplitude)}·{label}"
     if isinstance(switch, BallArgument):
-        ball, sense = switches.find_ball(switch.switch)
+        ball, mapping = switches.find_ball(switch.switch)
+        component, sense = mapping[switch.component]
         if amplitude.is_number:
             value: float | tuple = abs(float(amplitude))
             sense *= 1.0 if float(amplitude) >= 0 else -1.0
@@ -218,7 +237,7 @@ def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, swi
                 amplitude, sense = -amplitude, -sense
             maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
             value = tuple(_scalar_pieces(group, switches.symbols) for group in maxes)
-        return SignTerm(value, ball, band, name, sense, switch.component)
+        return SignTerm(value, ball, band, name, sense, component)
     if amplitude.is_number:
         a = float(amplitude)
         value: float | tuple = abs(a)

@@ -209,7 +209,8 @@ class VectorSgn(Set):
     ``{(v1, v2): (f1, f2) - mu*Sgn(v1, v2)}`` (the compiler splits it into those blocks). The
     solver gives it ONE selection vector λ ∈ B per node, tied by λ = P_B(λ + c·v) (the
     projection onto B: second-order-cone complementarity), shared by every coordinate and by
-    every other Sgn of the same (or a constant positive multiple of the same) arguments.
+    every other Sgn of the same arguments up to a constant factor, their order and their
+    signs (Sgn(2·v) = Sgn(v), Sgn(−v) = −Sgn(v), Sgn(v2, v1) is Sgn(v1, v2) swapped).
 
     ``matrix=W`` (numbers, k' × k): the subdifferential of the weighted norm |W·v|,
     Wᵀ·Sgn(W·v) ⊂ Wᵀ·B — elliptic friction, v' ∈ f − Sgn(v1, v2, matrix=diag(μ1, μ2)) is the

@@ -69,6 +69,15 @@ def test_constant_multiples_of_the_vector_switch_share_its_selection():
     assert [(term.sense, term.component) for term in terms] == [(-1.0, 0), (-1.0, 0), (1.0, 1)]
 
 
+def test_a_permuted_or_reflected_vector_switch_is_the_same_surface():
+    """Sgn(v2, v1) is Sgn(v1, v2) with its coordinates swapped, Sgn(−v1, v2) with the first
+    reversed: one selection vector, or the set at v = 0 would be a square, not the disc."""
+    compiled = compile_sets({v1: -Sgn(v1, v2)[0], v2: -Sgn(v2, v1)[0] + Sgn(-v1, v2)[0], v3: Sgn(v1, v3)[1]}, (v1, v2, v3))
+    terms = [term for block in compiled.blocks for term in block.signs]
+    assert len({id(term.switch) for term in terms[:3]}) == 1 and terms[3].switch is not terms[0].switch
+    assert [(term.sense, term.component) for term in terms] == [(-1.0, 0), (-1.0, 1), (-1.0, 0), (1.0, 1)]
+
+
 def test_sliding_the_set_is_the_point_f_minus_mu_v_over_its_norm():
     f = _functional(Planar())
     v = np.array([1.0, 0.5])
