@@ -319,7 +319,9 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     the piece goes on with a new aim. Stuck, it ends where |λ_eq| reaches 1 (break-away);
     then it leaves in its quasi-static direction until |s| = RELEASE_RADIUS·max(1, |x|), and
     moves by s/|s| from there (the first-order agreement of the two keeps the error of that
-    start at O(τ³) in s', τ the time it takes)."""
+    start at O(τ³) in s', τ the time it takes), by Radau IIA while s/|s| is stiff
+    (:func:`_method`). Measured on isotropic-puck against its reference: 1.1e-10 at
+    rtol = atol = 1e-12, 3e-10 at 1e-11 (tests/models/test_isotropic_friction.py)."""
     clock = time.perf_counter()
     x = np.array(x0, dtype=float)
     if not np.all(np.isfinite(x)):
