@@ -213,3 +213,60 @@ def test_the_papers_direction_runs_on_a_vector_sign():
     result = qdframe.solve("isotropic-puck", direction="native", nodes=51, max_iter=20, estimate=False)
     assert result.status in ("stationary", "max_iter", "solved", "uncertified")
     assert result.history[-1].I < result.history[0].I
+
+
+def test_elliptic_friction_at_an_angle_is_solved_and_agrees_with_the_event_driven_motion():
+    """Sgn(v1, v2, matrix=W), W = diag(1, 0.4)·R(30°)ᵀ: friction forces fill an ellipse at 30°
+    at rest, −WᵀWv/|Wv| while sliding. The collocation solve and the event-driven motion of
+    the same law are two computations of one trajectory."""
+    angle = np.pi / 6
+    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    W = np.diag([1.0, 0.4]) @ rotation.T
+
+    class Elliptic(SetModel):
+        name = "elliptic-puck"
+        state_names = "p1 p2 v1 v2"
+        default_x0 = (0.0, 0.0, 1.0, 0.8)
+        default_T = 2.5
+
+        def sets(self, p1, p2, v1, v2):
+            S = Sgn(v1, v2, matrix=W)
+            return {p1: v1, p2: v2, v1: 0.1 - S[0], v2: -0.2 - S[1]}
+
+    model = Elliptic()
+    motion = filippov.integrate(_system(model), model.x0, model.T)
+    assert [mode for _, mode in motion.modes] == [(filippov.MOVING,) * 2, (0, 0)]  # slides, stops, sticks
+    result = qdframe.solve(model)
+    assert result.status == "solved", result.message
+    assert np.max(np.abs(result.x - motion(result.t))) <= 1e-6
+    assert result.switch_times == pytest.approx(motion.switch_times, abs=1e-8)
+    sliding = result.t < motion.switch_times[0] - 1e-2
+    v = result.x[sliding, 2:]
+    force = -(W.T @ W @ v.T).T / np.linalg.norm(v @ W.T, axis=1)[:, None]  # maximal dissipation on the ellipse
+    assert np.allclose(result.z[sliding, 2:], np.array([0.1, -0.2]) + force, atol=1e-6)
+
+
+def test_a_two_point_problem_with_a_vector_sign_is_certified_by_bisection():
+    """The planar slide with v1(0) free and p1(2) given (its value on the closed form): the
+    estimate is the bisected mesh's, and it holds."""
+    d, n = np.array([0.6, 0.8]), np.array([-0.8, 0.6])
+    along, across, _, _ = sled_phase(np.array([2.0]))
+
+    class SledBVP(SetModel):
+        name = "sled-bvp"
+        state_names = "p1 p2 v1 v2"
+        default_x0 = (0.0, 0.0, float("nan"), 0.6)
+        default_xT = {"p1": float(along[0] * d[0] + across[0] * n[0])}
+        default_T = 2.0
+
+        def sets(self, p1, p2, v1, v2):
+            S = Sgn(v1, v2)
+            return {p1: v1, p2: v2, v1: 0.3 - S[0], v2: 0.4 - S[1]}
+
+    result = qdframe.solve(SledBVP())
+    along, across, v_along, v_across = sled_phase(result.t)
+    exact = np.concatenate([np.outer(along, d) + np.outer(across, n), np.outer(v_along, d) + np.outer(v_across, n)],
+                           axis=1)
+    assert result.status == "solved" and result.certificate == "bisection", result.message
+    assert np.max(np.abs(result.x - exact)) <= result.error_estimate <= 1e-6
+    assert result.x[0, 2] == pytest.approx(-0.8, abs=1e-6)
