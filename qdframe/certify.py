@@ -14,7 +14,9 @@ consistency               max_k |x_k − x(t_0) − ∫_0^{t_k} z|          resi
 surface                   max_k |e(x_k)|                              residual_tol·scale_x
 ========================  ==========================================  =====================
 
-scale_x = max(1, max |x|) and scale_z = max(1, max |z|) over the trajectory: a problem
+(A vector sign's selection λ ∈ B, isotropic friction, has λ − P_B(λ + s), P_B the projection
+onto the unit ball, in place of the clip.) scale_x = max(1, max |x|) and scale_z = max(1,
+max |z|) over the trajectory: a problem
 whose states are of size 1e3 gets tolerances 1e3 times larger, one of size 1e-3 keeps
 the absolute tolerance. x(t_0) = x0 holds exactly (x0 is data, not an unknown).
 """

@@ -349,6 +349,9 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
             note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
             if found.detail:
                 note = _join(note, found.detail)
+            if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
+                result.switch_times = switches.polish(result.switch_times, found.switch_times,
+                                                      functional.grid.mesh_times)
     result.options = {**result.options, "estimate_time_s": outcome.seconds}
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
@@ -721,7 +724,7 @@ def _result(functional, solver, search, options, xi, status, message, history, e
         z=z,
         u=functional.controls(xi) if functional.m else None,
         selections=functional.selections(xi) if functional.p else None,
-        selection_names=[term.name for _, term in functional.selection_terms],
+        selection_names=list(functional.selection_names),
         state_names=tuple(model.state_names),
         control_names=tuple(model.control_names),
         set_bounds=bounds,

@@ -216,9 +216,11 @@ def condition_parts(functional: Functional, xi: np.ndarray) -> list[Clause]:
                               "consistency"))
     if functional.p:  # σ
         r = np.abs(functional.selection_residual(xi)[0])
-        for k, (_, term) in enumerate(functional.selection_terms):
-            clauses.append(Clause(integral(r[:, k]), f"selection of {term.name} not in Sgn(s): "
-                                  f"max |λ − clip(λ + c·s, −1, 1)| {at(r[:, k])}", "selection"))
+        ball = {k for first, width in functional.balls for k in range(first, first + width)}
+        for k, name in enumerate(functional.selection_names):
+            rule = "λ − P_B(λ + c·s)" if k in ball else "λ − clip(λ + c·s, −1, 1)"
+            clauses.append(Clause(integral(r[:, k]), f"selection of {name} not in Sgn(s): max |{rule}| {at(r[:, k])}",
+                                  "selection"))
     return clauses
 
 

@@ -13,6 +13,7 @@ class InputError(QdframeError, ValueError):
     def __init__(self, field: str, expected: str, got: object | None = None) -> None:
         self.field = field
         self.expected = expected
+        self.got = got
         message = f"{field}: expected {expected}"
         if got is not None:
             message += f", got {got!r}"

@@ -76,6 +76,7 @@ class Estimate:
     detail: str = ""
     companion: SolveResult | None = None
     reference: np.ndarray | None = None
+    switch_times: tuple[float, ...] | None = None  # the replayed motion's, where that motion is the solution (an IVP)
 
 
 def solutions_form_a_set(functional: Functional) -> bool:
@@ -85,9 +86,9 @@ def solutions_form_a_set(functional: Functional) -> bool:
         return False
     if functional.m:
         return True
-    probe = np.zeros((1, functional.dim))
-    probe[0, : functional.n] = np.nan_to_num(functional.model.x0)
     exact = functional if functional.signs == "exact" else like(functional, functional.grid, "exact")
+    probe = np.zeros((1, exact.dim))  # exact's layout: with signs="band" the functional has no selections
+    probe[0, : functional.n] = np.nan_to_num(functional.model.x0)
     return any(not sides.equation for sides in exact.distance_sides(probe))
 
 
@@ -199,7 +200,9 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
             return Estimate(None, None, REPLAY, f"no replay at a looser tolerance: {exc}")
         value += float(np.max(np.abs(looser(t) - reference)))  # the integration's own error, with margin
     detail = f"the true motion from x(0) misses the conditions by {miss:.1e}" if miss else ""
-    return Estimate(value, _local(grid, difference, 1.0), REPLAY, detail, reference=reference)
+    solution = not inputs and initial_value_problem(exact)  # the replayed motion is the solution itself
+    return Estimate(value, _local(grid, difference, 1.0), REPLAY, detail, reference=reference,
+                    switch_times=tuple(motion.switch_times) if solution else None)
 
 
 def _collocation_replay(functional: Functional, result: SolveResult, rule: Callable) -> Estimate:

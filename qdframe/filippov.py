@@ -20,6 +20,12 @@ in λ units (ds_i/dt divided by |∇s_i·B_i|), so that at a transversal crossin
 attractive surface exactly one mode has a non-negative margin (Filippov's rule: attractive
 → slide, transversal → cross); the mode of largest smallest margin is taken.
 
+A vector sign (isotropic friction, `balls`: k consecutive switches s ∈ R^k with one
+selection vector λ ∈ B) has two regimes: MOVING, λ = s/|s|, and stuck (mode 0) on s = 0 with
+λ the equivalent control, which the same linear solve gives; it stops where s reaches 0
+along a line, breaks away where |λ_eq| reaches 1 and leaves in the quasi-static direction
+(:func:`quasi_static`), consistent with s/|s| to first order in the time since.
+
 :func:`model_system` states a qdframe model in this form (its equations and sets as the
 drift, its sign terms as B and s, the sets' choice and the controls as inputs of time);
 the error certificate by replay (:mod:`qdframe.estimates`), the default start of a solve
@@ -63,13 +69,16 @@ class FilippovSystem:
     """x' ∈ g(t, x) + B(t, x)·Sgn(s(t, x)), evaluated by `fields(t, x)`.
 
     `names`: one per switch; `breaks`: times where the drift is not smooth in t (an
-    input's jumps), where the integrator ends a piece and chooses the mode afresh.
+    input's jumps), where the integrator ends a piece and chooses the mode afresh; `balls`:
+    the vector signs Sgn(s), s ∈ R^k (isotropic friction: λ = s/|s| for s ≠ 0, |λ| ≤ 1 at
+    s = 0), each (its first switch, k) over k consecutive switches and columns of B.
     """
 
     fields: Callable[[float, np.ndarray], Fields]
     names: tuple[str, ...]
     name: str = ""
     breaks: tuple[float, ...] = ()
+    balls: tuple[tuple[int, int], ...] = ()  # vector signs: (first switch, k), their k switches s ∈ R^k consecutive
 
     @property
     def switch_count(self) -> int:
@@ -123,28 +132,120 @@ class _Cached:
 
 
 # ----------------------------------------------------------------- modes and fields
-def velocity(fields: Fields, mode: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+def velocity(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]] = (),
+             aims: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """x' = g + B·λ in `mode` and the selections λ (k,): m_i off the surface, the
-    equivalent control on it. Raises numpy.linalg.LinAlgError when ∇s_S·B_S is singular."""
+    equivalent control on it. Raises numpy.linalg.LinAlgError when ∇s_S·B_S is singular.
+
+    A vector sign (`balls`: (first switch, dimension) of each) takes λ = s/|s| while it moves
+    (mode MOVING; its aim, the direction last taken, where s = 0 exactly), the equivalent
+    control while stuck (0), and the quasi-static direction (:func:`quasi_static`) while it
+    leaves s = 0 (LEAVING)."""
+    return _solve_mode(fields, mode, balls, aims)[:2]
+
+
+MOVING, LEAVING = 2, 3  # a vector sign's mode (on each of its columns): λ = s/|s|, and leaving s = 0; 0: stuck
+RELEASE_RADIUS = 1e-7  # a leaving vector sign moves by s/|s| once |s| ≥ this·max(1, |x|) (quasi-static before)
+STIFF_RADIUS = 1e-3  # a vector sign that moves from |s| below this·max(1, |x|): the piece is stiff (_method)
+STOP_TOL = 1e-8  # a moving vector sign's ⟨s, aim⟩ = 0 with |s| ≤ this·max(1, |x|) is a stop (else a new aim)
+
+
+def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]],
+                aims: dict[int, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
+    """:func:`velocity`, and each stuck or leaving vector sign's equivalent control λ_eq (its
+    first switch: λ_eq), the selection that would keep its s at 0."""
     lam = np.array(mode, dtype=float)
-    sliding = [i for i, m in enumerate(mode) if m == 0]
-    base = fields.g + fields.B @ lam  # λ_S = 0 here
+    ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
+    sliding = [i for i, m in enumerate(mode) if m == 0 or (i in ball_of and m == LEAVING)]
+    for a, k in balls:
+        if mode[a] == MOVING:
+            part = fields.s[a : a + k]
+            radius = float(np.linalg.norm(part))
+            lam[a : a + k] = part / radius if radius > 0 else (aims or {}).get(a, np.eye(k)[0])
+        elif mode[a] == LEAVING:
+            lam[a : a + k] = 0.0
+    base = fields.g + fields.B @ np.where(np.isin(np.arange(lam.size), sliding), 0.0, lam)
+    equivalent: dict[int, np.ndarray] = {}
     if sliding:
         grads = fields.ds[sliding]
         lam[sliding] = np.linalg.solve(grads @ fields.B[:, sliding], -(grads @ base))
+        leaving = [(a, k) for a, k in balls if mode[a] == LEAVING]
+        for a, k in balls:
+            if mode[a] in (0, LEAVING):
+                equivalent[a] = lam[a : a + k].copy()
+        if leaving:  # the leaving signs at their quasi-static direction, the other sliding switches again
+            for a, k in leaving:
+                response = fields.ds[a : a + k] @ fields.B[:, a : a + k]
+                lam[a : a + k] = quasi_static(response, equivalent[a])
+            fixed = [i for i in sliding if not (i in ball_of and mode[ball_of[i][0]] == LEAVING)]
+            base = fields.g + fields.B @ np.where(np.isin(np.arange(lam.size), fixed), 0.0, lam)
+            if fixed:
+                grads = fields.ds[fixed]
+                lam[fixed] = np.linalg.solve(grads @ fields.B[:, fixed], -(grads @ base))
+            return base + fields.B[:, fixed] @ lam[fixed], lam, equivalent
         base = base + fields.B[:, sliding] @ lam[sliding]
-    return base, lam
+    return base, lam, equivalent
 
 
-def _margins(fields: Fields, mode: tuple[int, ...], at: Sequence[int]) -> np.ndarray:
-    """For the switches `at` the surface, in λ units: 1 − |λ_i| when sliding,
-    m_i·(ds_i/dt)/|∇s_i·B_i| when moving (≥ 0 means consistent)."""
+def quasi_static(response: np.ndarray, equivalent: np.ndarray) -> np.ndarray:
+    """The direction λ (|λ| = 1) in which a vector sign leaves s = 0: with A = ∇s·B (k×k) and
+    λ_eq the equivalent control (|λ_eq| ≥ 1), s' = A·(λ − λ_eq) must grow along λ itself,
+    A·(λ − λ_eq) = κ·λ with κ ≥ 0, so λ = (A − κI)⁻¹·A·λ_eq with |λ| = 1. It agrees with the
+    true s/|s| to first order in the time since the break-away (isotropic friction, A = −μI:
+    λ = λ_eq/|λ_eq|). κ by bisection on |λ(κ)| = 1 (decreasing in κ for a dissipative A);
+    λ_eq/|λ_eq| where that fails."""
+    size = float(np.linalg.norm(equivalent))
+    fallback = equivalent / size if size > 0 else np.eye(equivalent.size)[0]
+    if size <= 1.0:
+        return equivalent if size == 1.0 else fallback
+    target = response @ equivalent
+    identity = np.eye(equivalent.size)
+
+    def direction(kappa: float) -> np.ndarray:
+        return np.linalg.solve(response - kappa * identity, target)
+
     try:
-        f, lam = velocity(fields, mode)
+        low, high = 0.0, max(1.0, float(np.max(np.abs(response))))
+        for _ in range(200):
+            if np.linalg.norm(direction(high)) < 1.0:
+                break
+            high *= 2.0
+        else:
+            return fallback
+        for _ in range(200):
+            middle = 0.5 * (low + high)
+            if middle in (low, high):
+                break
+            if np.linalg.norm(direction(middle)) > 1.0:
+                low = middle
+            else:
+                high = middle
+        found = direction(0.5 * (low + high))
+    except np.linalg.LinAlgError:
+        return fallback
+    norm = float(np.linalg.norm(found))
+    return found / norm if np.isfinite(norm) and norm > 0 else fallback
+
+
+def _margins(fields: Fields, mode: tuple[int, ...], at: Sequence[int], balls: Sequence[tuple[int, int]] = (),
+             aims: dict[int, np.ndarray] | None = None) -> np.ndarray:
+    """For the switches `at` the surface, in λ units: 1 − |λ_i| when sliding,
+    m_i·(ds_i/dt)/|∇s_i·B_i| when moving (≥ 0 means consistent). A vector sign at the surface
+    (its first switch in `at`): 1 − |λ_eq| when stuck, |λ_eq| − 1 when leaving."""
+    try:
+        f, lam, equivalent = _solve_mode(fields, mode, balls, aims)
     except np.linalg.LinAlgError:
         return np.array([-np.inf])
+    firsts = {a for a, _ in balls}
+    inner = {a + j for a, k in balls for j in range(1, k)}
     out = []
     for i in at:
+        if i in inner:
+            continue
+        if i in firsts:
+            size = float(np.linalg.norm(equivalent[i])) if i in equivalent else 1.0
+            out.append(1.0 - size if mode[i] == 0 else size - 1.0)
+            continue
         if mode[i] == 0:
             out.append(1.0 - abs(lam[i]))
             continue
@@ -155,33 +256,48 @@ def _margins(fields: Fields, mode: tuple[int, ...], at: Sequence[int]) -> np.nda
 
 
 def choose_mode(fields: Fields, x: np.ndarray, current: tuple[int, ...] | None = None, crossed: int | None = None,
-                released: tuple[int, int] | None = None, name: str = "", t: float = 0.0) -> tuple[int, ...]:
+                released: tuple[int, int] | None = None, name: str = "", t: float = 0.0,
+                balls: Sequence[tuple[int, int]] = (), aims: dict[int, np.ndarray] | None = None) -> tuple[int, ...]:
     """The Filippov mode at a point: enumerate {0, +1, −1} for every switch at its surface
     (|s_i| ≤ SURFACE_TOL·max(1, |x|), sliding in `current`, or the `crossed` one), keep
     the consistent modes (every margin ≥ −MARGIN_TOL) and take the one of largest smallest
     margin. `crossed`: switch i reached s_i = 0 from side current[i], which it cannot keep;
-    `released`: (i, ±1), sliding switch i's λ reached ±1: it leaves to that side."""
+    `released`: (i, ±1), sliding switch i's λ reached ±1: it leaves to that side.
+
+    A vector sign (`balls`, indexed by its first switch) is at its surface where |s| ≤
+    SURFACE_TOL·max(1, |x|) (or stuck in `current`, or `crossed`: it stopped); there it is
+    stuck (0) or LEAVING, elsewhere MOVING; `released` = (a, LEAVING) when its |λ_eq| reached 1."""
     values = fields.s
     near = SURFACE_TOL * max(1.0, float(np.max(np.abs(x), initial=0.0)))
-    at = {i for i, c in enumerate(values) if abs(c) <= near}
+    ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
+    radius = {a: float(np.linalg.norm(values[a : a + k])) for a, k in balls}
+    at = {i for i, c in enumerate(values) if i not in ball_of and abs(c) <= near}
+    at |= {a for a, _ in balls if radius[a] <= near}
     if current is not None:
-        at |= {i for i, m in enumerate(current) if m == 0}
+        at |= {i for i, m in enumerate(current) if m == 0 and (i not in ball_of or ball_of[i][0] == i)}
     if crossed is not None:
         at.add(crossed)
     if released is not None:
         at.add(released[0])
     at_sorted = sorted(at)
     fixed = [1 if c > 0 else -1 for c in values]
+    for a, k in balls:
+        fixed[a : a + k] = [MOVING] * k
     best, best_margin = None, -np.inf
-    for choice in itertools.product((0, 1, -1), repeat=len(at_sorted)):
+    options = [(0, LEAVING) if i in ball_of else (0, 1, -1) for i in at_sorted]
+    for choice in itertools.product(*options):
         mode = list(fixed)
         for i, m in zip(at_sorted, choice):
-            mode[i] = m
+            if i in ball_of:
+                a, k = ball_of[i]
+                mode[a : a + k] = [m] * k
+            else:
+                mode[i] = m
         if crossed is not None and current is not None and mode[crossed] == current[crossed]:
             continue
         if released is not None and mode[released[0]] != released[1]:
             continue
-        margins = _margins(fields, tuple(mode), at_sorted)
+        margins = _margins(fields, tuple(mode), at_sorted, balls, aims)
         smallest = float(margins.min()) if margins.size else np.inf
         if smallest >= -MARGIN_TOL and smallest > best_margin:
             best, best_margin = tuple(mode), smallest
@@ -195,23 +311,39 @@ def choose_mode(fields: Fields, x: np.ndarray, current: tuple[int, ...] | None =
 def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float = 1e-12, atol: float = 1e-12, *,
               t0: float = 0.0) -> FilippovTrajectory:
     """The Filippov motion of `system` from x(t0) = x0 over [t0, T]: DOP853 (dense output)
-    between terminal events, the mode re-chosen by :func:`choose_mode` at every event."""
+    between terminal events, the mode re-chosen by :func:`choose_mode` at every event.
+
+    A vector sign (the system's `balls`) that moves ends its piece where ⟨s, aim⟩ reaches 0,
+    aim the direction of s when the piece began: a stop where |s| ≈ 0 there (|s| → 0 along
+    a line through 0), else the direction has turned (also ended where it turns by 60°), and
+    the piece goes on with a new aim. Stuck, it ends where |λ_eq| reaches 1 (break-away);
+    then it leaves in its quasi-static direction until |s| = RELEASE_RADIUS·max(1, |x|), and
+    moves by s/|s| from there (the first-order agreement of the two keeps the error of that
+    start at O(τ³) in s', τ the time it takes), by Radau IIA while s/|s| is stiff
+    (:func:`_method`). Measured on isotropic-puck against its reference: 1.1e-10 at
+    rtol = atol = 1e-12, 3e-10 at 1e-11 (tests/models/test_isotropic_friction.py)."""
     clock = time.perf_counter()
     x = np.array(x0, dtype=float)
     if not np.all(np.isfinite(x)):
         raise FilippovError(f"{system.name}: x0 must be finite, got {x}")
     fields = _Cached(system)
+    balls = tuple(system.balls)
     t, T = float(t0), float(T)
     stops = sorted({b for b in system.breaks if t < b < T} | {T})
-    mode = choose_mode(fields(t, x), x, name=system.name, t=t)
+    mode = choose_mode(fields(t, x), x, name=system.name, t=t, balls=balls)
+    aims = _aims(fields(t, x), mode, balls, {})
     starts, pieces, switches, modes = [], [], [], [(t, mode)]
     events = stalls = 0
+    left: dict[int, float] = {}  # when each vector sign last began to leave rest
     while t < T:
         stop = next(s for s in stops if s > t)
         inside = _inside(t, stop)
-        current = mode
-        run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current)[0], (t, stop), x, method="DOP853",
-                        rtol=rtol, atol=atol, dense_output=True, events=_events(fields, current, inside))
+        current, aimed = mode, dict(aims)
+        scale = max(1.0, float(np.max(np.abs(x), initial=0.0)))
+        method, until = _method(fields(inside(t), x), current, balls, scale, aimed, t, left)
+        watched = _events(fields, current, inside, balls, aimed, scale)
+        run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, min(until, stop)),
+                        x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched])
         if run.status == -1:
             raise FilippovError(f"{system.name}: DOP853 failed at t = {run.t[-1]:.17g} in mode {mode}: {run.message}")
         end = float(run.t[-1])
@@ -223,23 +355,42 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         if stalls > MAX_STALLS or events > MAX_EVENTS + len(stops):
             raise FilippovError(f"{system.name}: no progress at t = {t:.17g} ({events} events): Zeno or chattering")
         t, x = end, run.y[:, -1].copy()
+        switched = True  # a mode change that is a switch of the motion (not a new aim, not the end of a release)
         if run.status == 1:
-            (i,) = [j for j, hits in enumerate(run.t_events) if hits.size][:1]
-            t, x = float(run.t_events[i][0]), run.y_events[i][0].copy()
+            (e,) = [j for j, hits in enumerate(run.t_events) if hits.size][:1]
+            kind, i = watched[e][1]
+            t, x = float(run.t_events[e][0]), run.y_events[e][0].copy()
             here = fields(_inside(t, stop)(t), x)
-            if mode[i] == 0:
-                lam = velocity(here, mode)[1][i]
-                new = choose_mode(here, x, mode, released=(i, 1 if lam > 0 else -1), name=system.name, t=t)
-            else:
-                new = choose_mode(here, x, mode, crossed=i, name=system.name, t=t)
+            near = max(1.0, float(np.max(np.abs(x), initial=0.0)))
+            if kind == "release":
+                lam = velocity(here, mode, balls, aims)[1][i]
+                new = choose_mode(here, x, mode, released=(i, 1 if lam > 0 else -1), name=system.name, t=t,
+                                  balls=balls, aims=aims)
+            elif kind == "cross":
+                new = choose_mode(here, x, mode, crossed=i, name=system.name, t=t, balls=balls, aims=aims)
+            elif kind in ("ball-stop", "ball-aim") and np.linalg.norm(here.s[i : i + _width(balls, i)]) <= STOP_TOL * near:
+                new = choose_mode(here, x, mode, crossed=i, name=system.name, t=t, balls=balls, aims=aims)
+            elif kind == "ball-release":
+                new = choose_mode(here, x, mode, released=(i, LEAVING), name=system.name, t=t, balls=balls, aims=aims)
+            elif kind == "ball-grown":
+                k = _width(balls, i)
+                new = mode[:i] + (MOVING,) * k + mode[i + k :]
+                switched = False
+            else:  # a moving vector sign turned (or ⟨s, aim⟩ = 0 away from s = 0): a new aim
+                new, switched = mode, False
+        elif t < stop:  # the end of a stiff start (_method): on by DOP853
+            new, switched = mode, False
         elif t < T:  # a break in the drift: choose afresh just after it
             new = choose_mode(fields(_inside(t, next(s for s in stops if s > t))(t), x), x, mode,
-                              name=system.name, t=t)
+                              name=system.name, t=t, balls=balls, aims=aims)
         else:
             break
+        aims = _aims(fields(_inside(t, next((s for s in stops if s > t), T))(t), x), new, balls, aims)
         if new != mode and t < T:
-            switches.append(t)
+            if switched:
+                switches.append(t)
             modes.append((t, new))
+        left.update({a: t for a, _ in balls if new[a] == LEAVING and mode[a] != LEAVING})
         mode = new
     if not pieces:
         raise FilippovError(f"{system.name}: nothing integrated over [{t0}, {T}]")
@@ -247,24 +398,105 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
                               time.perf_counter() - clock)
 
 
-def _events(fields: _Cached, mode: tuple[int, ...], inside: Callable[[float], float]) -> list[Callable]:
-    out = []
+def _method(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]], scale: float,
+            aims: dict[int, np.ndarray], t: float, left: dict[int, float]) -> tuple[str, float]:
+    """The method of the next piece and the time it ends by: DOP853 to the next event, or Radau
+    IIA (implicit) where a vector sign moves away from rest with |s| < STIFF_RADIUS·max(1, |x|)/2.
+    There s/|s| turns back to its slow direction at a rate ~|∇s·B|/|s|, so just after a
+    break-away (|s| ~ τ², τ the time since it began to leave) an explicit method needs steps
+    ~|s| (≈ 600 DOP853 steps on isotropic-puck), an implicit one steps of the motion's own
+    scale. The Radau piece ends at the time |s| should reach STIFF_RADIUS·max(1, |x|) (τ grown
+    by √(STIFF_RADIUS·max(1, |x|)/|s|)), a step's end: SciPy's Radau is less accurate than
+    DOP853 at tight tolerances once its steps grow, and its interpolant (at an event) more so."""
+    try:
+        f = velocity(fields, mode, balls, aims)[0]
+    except np.linalg.LinAlgError:
+        return "DOP853", np.inf
+    for a, k in balls:
+        part = fields.s[a : a + k]
+        radius = float(np.linalg.norm(part))
+        if mode[a] == MOVING and radius < 0.5 * STIFF_RADIUS * scale and part @ (fields.ds[a : a + k] @ f) > 0:
+            since = t - left.get(a, t)
+            return "Radau", t + since * (np.sqrt(STIFF_RADIUS * scale / max(radius, 1e-300)) - 1.0) if since > 0 else np.inf
+    return "DOP853", np.inf
+
+
+def _width(balls: Sequence[tuple[int, int]], first: int) -> int:
+    return next(k for a, k in balls if a == first)
+
+
+def _aims(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]],
+          previous: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """Each vector sign's aim for the next piece: the direction of s where it moves (the
+    previous aim where s = 0), its quasi-static direction where it leaves s = 0."""
+    out = {}
+    for a, k in balls:
+        part = fields.s[a : a + k]
+        radius = float(np.linalg.norm(part))
+        if mode[a] == MOVING and radius > 0:
+            out[a] = part / radius
+        elif mode[a] == LEAVING:
+            try:
+                out[a] = velocity(fields, mode, balls, previous)[1][a : a + k].copy()
+            except np.linalg.LinAlgError:
+                out[a] = previous.get(a, np.eye(k)[0])
+        else:
+            out[a] = previous.get(a, np.eye(k)[0])
+    return out
+
+
+def _events(fields: _Cached, mode: tuple[int, ...], inside: Callable[[float], float],
+            balls: Sequence[tuple[int, int]] = (), aims: dict[int, np.ndarray] | None = None,
+            scale: float = 1.0) -> list[tuple[Callable, tuple[str, int]]]:
+    """The terminal events of a piece in `mode`, each with (its kind, its switch)."""
+    out: list[tuple[Callable, tuple[str, int]]] = []
+    ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
     for i, m in enumerate(mode):
+        if i in ball_of:
+            continue
         if m == 0:
             def release(t: float, x: np.ndarray, i: int = i) -> float:
                 try:
-                    return abs(velocity(fields(inside(t), x), mode)[1][i]) - 1.0
+                    return abs(velocity(fields(inside(t), x), mode, balls, aims)[1][i]) - 1.0
                 except np.linalg.LinAlgError:
                     return 1.0
 
             release.terminal, release.direction = True, 1.0
-            out.append(release)
+            out.append((release, ("release", i)))
         else:
             def crossing(t: float, x: np.ndarray, i: int = i) -> float:
                 return float(fields(inside(t), x).s[i])
 
             crossing.terminal, crossing.direction = True, -float(m)
-            out.append(crossing)
+            out.append((crossing, ("cross", i)))
+    for a, k in balls:
+        aim = (aims or {}).get(a, np.eye(k)[0])
+        if mode[a] == MOVING:
+            def stopping(t: float, x: np.ndarray, a: int = a, k: int = k, aim: np.ndarray = aim) -> float:
+                return float(fields(inside(t), x).s[a : a + k] @ aim)
+
+            def turning(t: float, x: np.ndarray, a: int = a, k: int = k, aim: np.ndarray = aim) -> float:
+                part = fields(inside(t), x).s[a : a + k]
+                return float(part @ aim - 0.5 * np.linalg.norm(part))
+
+            stopping.terminal, stopping.direction = True, -1.0
+            turning.terminal, turning.direction = True, -1.0
+            out += [(stopping, ("ball-stop", a)), (turning, ("ball-aim", a))]
+        elif mode[a] == 0:
+            def breaking(t: float, x: np.ndarray, a: int = a) -> float:
+                try:
+                    return float(np.linalg.norm(_solve_mode(fields(inside(t), x), mode, balls, aims)[2][a])) - 1.0
+                except np.linalg.LinAlgError:
+                    return -1.0
+
+            breaking.terminal, breaking.direction = True, 1.0
+            out.append((breaking, ("ball-release", a)))
+        else:  # LEAVING: quasi-static until |s| has grown to RELEASE_RADIUS
+            def growing(t: float, x: np.ndarray, a: int = a, k: int = k) -> float:
+                return float(np.linalg.norm(fields(inside(t), x).s[a : a + k])) - RELEASE_RADIUS * scale
+
+            growing.terminal, growing.direction = True, 1.0
+            out.append((growing, ("ball-grown", a)))
     return out
 
 
@@ -288,7 +520,7 @@ def model_system(functional, controls: Input | None = None, choice: Input | None
     clip for an interval; :func:`~qdframe.functional.nearest.nearest` for a block of k ≥ 2
     coordinates); a resolved state z_i ≡ x_j gives x_j. B: column k of selection k holds
     sense·a(y) of each sign term on it, in its block's coordinate. s: the selections'
-    switches. `controls(t)` gives u (m,), `choice(t)` the velocities whose nearest points in
+    switches (a vector sign's k components, one of the system's `balls`). `controls(t)` gives u (m,), `choice(t)` the velocities whose nearest points in
     the sets are taken (n,), `breaks` the times where either jumps. One point at a time:
     the pieces are called with one row (N = 1) directly, without the functional's checks
     (a non-finite value raises FilippovError naming the piece). Raises FilippovError for a
@@ -311,7 +543,7 @@ def model_system(functional, controls: Input | None = None, choice: Input | None
     intervals = [_Interval(block) for block in functional.blocks]
     terms = [(functional.blocks[b].coords[0], k, term) for (b, term), k in zip(functional.sign_terms,
                                                                               functional.sign_columns)]
-    switches = [term.switch for _, term in functional.selection_terms]
+    switches = [(group.columns, group.term.switch) for group in functional.selection_groups]
     row = np.zeros((1, functional.dim))
     y = np.zeros((1, n + m))
 
@@ -335,15 +567,15 @@ def model_system(functional, controls: Input | None = None, choice: Input | None
         for coord, k, term in terms:
             B[coord, k] += term.sense * _amplitude(term, y)
         s, ds = np.empty(p), np.empty((p, n))
-        for k, switch in enumerate(switches):
+        for columns, switch in switches:  # a vector sign: its k components in its k columns
             value, gradient = switch(y)
-            s[k], ds[k] = value[0], gradient[0, :n]
+            s[columns], ds[columns] = value[0], gradient[0, ..., :n]
         if not np.isfinite(g.sum() + B.sum() + s.sum() + ds.sum()):
             raise FilippovError(f"{model.name}: the model is non-finite at t = {t:.6g}, x = {np.array2string(x)}")
         return Fields(g, B, s, ds)
 
-    names = tuple(term.name for _, term in functional.selection_terms)
-    return FilippovSystem(fields, names, model.name, tuple(float(b) for b in breaks))
+    names = tuple(functional.selection_names)
+    return FilippovSystem(fields, names, model.name, tuple(float(b) for b in breaks), tuple(functional.balls))
 
 
 class _Interval:

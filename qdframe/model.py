@@ -74,6 +74,32 @@ class MinGroup:
 
 
 @dataclass(frozen=True)
+class BallSwitch:
+    """The switch of a vector sign Sgn(s(y)), s ∈ R^k (k ≥ 2): Filippov's s/|s| for s ≠ 0 and
+    the closed unit ball B at s = 0, the subdifferential of the Euclidean norm |s| (isotropic
+    Coulomb friction in the plane or in space: v' ∈ f − μ·Sgn(v1, v2)).
+
+    `function(y)` returns s (N, k) and ∇s (N, k, n + m). The solver gives the switch ONE
+    selection vector λ ∈ B per node (k columns of the selections), tied to s by the natural
+    map λ = P_B(λ + c·s) (P_B the projection onto the ball: Alart and Curnier's
+    second-order-cone complementarity), so that λ = s/|s| where s ≠ 0 and |λ| ≤ 1 where
+    s = 0. Sign terms pass it as their `switch` with a `component` j: each contributes
+    sense·a(y)·λ_j to its coordinate, and every term on the same BallSwitch object shares λ.
+
+    A weighted norm |W·v| (elliptic friction, principal axes μ-scaled) is the ball switch
+    s = W·v with the terms of Wᵀ·λ: ∂|Wv| = Wᵀ·Sgn(Wv) (the set language's
+    ``Sgn(v1, v2, matrix=W)``).
+    """
+
+    function: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    dim: int
+    name: str = "Sgn"
+
+    def __call__(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.function(y)
+
+
+@dataclass(frozen=True)
 class SignTerm:
     """sense·a(y)·Sgn(s(y)), Filippov's set-valued sign term (paper Section 5): {a·sign s}
     for s ≠ 0 and a·[−1, 1] at s = 0, with the amplitude a(y) = Σ_i max_q a_iq(y) ≥ 0 and
@@ -99,13 +125,24 @@ class SignTerm:
     exact for β = 0, which the simulator uses. β = inf keeps the whole interval
     a·[−1, 1] everywhere: the paper's form on the discontinuity surface s = 0, exact
     when the model's surface enforces s = 0. Only for one-coordinate blocks.
+
+    A vector sign: `switch` a :class:`BallSwitch` and `component` j in 0..k − 1; the term is
+    sense·a(y)·λ_j with λ ∈ Sgn(s) ⊂ B the switch's selection vector. Its band (for
+    ``signs="band"`` and the band start) is the interval [w·s_j/|s| − (1 − w), w·s_j/|s| + (1 − w)],
+    w = S(min(|s|/β, 1)): the whole [−1, 1] at s = 0, s_j/|s| for |s| ≥ β, C¹ in s.
     """
 
     amplitude: float | tuple[Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], ...]
-    switch: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    switch: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | BallSwitch
     band: float = 1e-3
     name: str = "sgn"
     sense: float = 1.0
+    component: int | None = None  # j of a BallSwitch's λ (None for a scalar switch)
+
+    @property
+    def ball(self) -> BallSwitch | None:
+        """The vector sign's switch, or None for a scalar sign term."""
+        return self.switch if isinstance(self.switch, BallSwitch) else None
 
 
 @dataclass(frozen=True)
@@ -274,6 +311,17 @@ class InclusionModel(ABC):
                     raise InputError(f"{type(self).__name__} sign term {term.name!r} band", "a number ≥ 0", term.band)
                 if term.sense not in (1.0, -1.0):
                     raise InputError(f"{type(self).__name__} sign term {term.name!r} sense", "+1 or −1", term.sense)
+                ball = term.ball
+                if ball is not None:
+                    if not (isinstance(ball.dim, (int, np.integer)) and ball.dim >= 2):
+                        raise InputError(f"{type(self).__name__} sign term {term.name!r} BallSwitch dim",
+                                         "an integer k ≥ 2 (one coordinate: a scalar switch)", ball.dim)
+                    if not (isinstance(term.component, (int, np.integer)) and 0 <= term.component < ball.dim):
+                        raise InputError(f"{type(self).__name__} sign term {term.name!r} component",
+                                         f"an index in 0..{ball.dim - 1} of its BallSwitch's λ", term.component)
+                elif term.component is not None:
+                    raise InputError(f"{type(self).__name__} sign term {term.name!r} component",
+                                     "None for a scalar switch (a component needs a BallSwitch)", term.component)
         for i, j in self.resolved.items():
             if not (0 <= i < self.n_states and 0 <= j < self.n_states):
                 raise InputError(f"{type(self).__name__}.resolved", f"pairs i: j of indices in 0..{self.n_states - 1}", (i, j))

@@ -5,8 +5,11 @@ a·Sgn(s) enters F as the point a·λ of Filippov's set, its selection λ an unk
 the natural map λ = clip(λ + c·s(x_{k+1}), −1, 1) (as `Functional.selection_residual`):
 λ = sign s off the surface, and on it s = 0 exactly with λ ∈ [−1, 1] the equivalent
 control. Sliding and sticking are exact roots, without a band or event location; terms
-with the same switch share one λ. c = 1/|∂s/∂λ| through the step (Alart–Curnier's
-scaling), so that the result does not depend on how s is scaled. Of an interval
+with the same switch share one λ. A vector sign Sgn(s), s ∈ R^k (isotropic friction), has
+one selection vector λ ∈ B tied by λ = P_B(λ + c·s), the projection onto the unit ball: λ =
+s/|s| while it slides, |λ| ≤ 1 and s = 0 while it sticks. c = 1/|∂s/∂λ| through the step
+(Alart–Curnier's scaling; one c per vector sign, the largest of its components'), so that
+the result does not depend on how s is scaled. Of an interval
 [lo_i, hi_i] the simulator takes the velocity nearest the previous one,
 z_i = clip(z_i^prev, lo_i, hi_i), so a singleton set is followed exactly and an interval
 only as far as it must.
@@ -29,6 +32,7 @@ from scipy.linalg import solve_banded
 
 from .errors import InputError, QdframeError
 from .functional import Functional
+from .functional.terms import _ball_projection_jacobian
 from .grid import Grid
 from .model import InclusionModel
 
@@ -110,7 +114,7 @@ def simulate_on(model: InclusionModel, t: np.ndarray, x_start: Sequence[float],
     xs = np.empty((steps + 1, model.n_states))
     zs = np.empty_like(xs)
     xs[0] = x
-    lam = np.sign(stepper.switches(np.concatenate([x, us[0]])[None, :])[0])[0]
+    lam = stepper.first_selections(stepper.switches(np.concatenate([x, us[0]])[None, :])[0][0])
     lo, hi, _, _ = stepper.bounds(np.concatenate([x, us[0]])[None, :], lam[None, :])
     z = np.clip(0.5 * (lo[0] + hi[0]), lo[0], hi[0])
     lams = np.empty((steps + 1, lam.size))
@@ -168,13 +172,18 @@ class _Stepper:
         self.size = self.n + self.p  # unknowns per step: x_j, then λ_j
 
     def switches(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """s (N, p) of every selection's switch and ∂s/∂x (N, p, n)."""
-        f = self.functional
-        s, ds = np.empty((y.shape[0], self.p)), np.empty((y.shape[0], self.p, self.n))
-        for k, (b, term) in enumerate(f.selection_terms):
-            s[:, k], gradient = f._switch(f.blocks[b], term, y)
-            ds[:, k] = gradient[:, : self.n]
-        return s, ds
+        """s (N, p) of every selection's switch (a vector sign's components in its columns) and ∂s/∂x (N, p, n)."""
+        s, ds = self.functional.switch_values(y)
+        return s, ds[:, :, : self.n]
+
+    def first_selections(self, s: np.ndarray) -> np.ndarray:
+        """λ (p,) at the start: sign(s), a vector sign's s/|s| (0 where s = 0)."""
+        lam = np.sign(s)
+        for first, width in self.functional.balls:
+            part = s[first : first + width]
+            radius = np.linalg.norm(part)
+            lam[first : first + width] = part / radius if radius > 0 else 0.0
+        return lam
 
     def bounds(self, y: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """lo, hi (N, n) of F(x) with the sign terms at a·λ, and their gradients (N, n, n + p) in (x, λ)."""
@@ -217,7 +226,7 @@ class _Stepper:
             scale = self.scales(own, ds)
         moved = lam + scale * s
         inside = np.abs(moved) < 1.0  # the clip is the identity there
-        r_lam = lam - np.clip(moved, -1.0, 1.0)
+        r_lam = lam - self.functional.project(moved)
         # solved to TOL, or to the rounding of x_j (ε|x_j| moves the target and c·s by as much)
         noise = ROUNDING * np.abs(x)[:, None, :]
         solved = np.all(np.abs(r_z) <= TOL * (1.0 + np.max(np.abs(previous), axis=1))[:, None]
@@ -225,6 +234,11 @@ class _Stepper:
         solved &= np.all(np.abs(r_lam) <= TOL + scale * np.sum(np.abs(ds) * noise, axis=2), axis=1)
         own[:, n:, :n] = -(scale * inside)[:, :, None] * ds
         own[:, n:, n:] = np.eye(self.p) * (1.0 - inside[:, None, :])
+        for first, width in self.functional.balls:  # P_B's Jacobian D: −c·D·∇s on x, I − D on λ
+            block = slice(first, first + width)
+            derivative = _ball_projection_jacobian(moved[:, block])
+            own[:, n + first : n + first + width, :n] = -scale[:, first, None, None] * (derivative @ ds[:, block])
+            own[:, n + first : n + first + width, n + first : n + first + width] = np.eye(width) - derivative
         back1 = -1.0 / dt - keep / before  # z_j − z_{j−1}·keep with z_j = (x_j − x_{j−1})/Δt_j
         back1[0] = 0.0
         back2 = keep / before
@@ -240,7 +254,10 @@ class _Stepper:
             response = ds @ np.linalg.solve(own[:, :n, :n], -own[:, :n, n:])  # ∂s/∂λ (W, p, p)
         except np.linalg.LinAlgError:
             return np.ones((own.shape[0], self.p))
-        return 1.0 / np.maximum(np.abs(np.diagonal(response, axis1=1, axis2=2)), SCALE_FLOOR)
+        diagonal = np.abs(np.diagonal(response, axis1=1, axis2=2))
+        for first, width in self.functional.balls:  # one c per vector sign: P_B(λ + c·s) needs c scalar
+            diagonal[:, first : first + width] = np.max(diagonal[:, first : first + width], axis=1, keepdims=True)
+        return 1.0 / np.maximum(diagonal, SCALE_FLOOR)
 
     def newton_step(self, own: np.ndarray, back1: np.ndarray, back2: np.ndarray, r: np.ndarray) -> np.ndarray:
         """The Newton change (W, n + p) of (x, λ) per step: the banded system solved once."""

@@ -22,7 +22,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from .filippov import FilippovError, FilippovTrajectory, integrate, model_system
+from .filippov import MOVING, FilippovError, FilippovTrajectory, integrate, model_system
 from .errors import ModelOutputError, QdframeError
 from .functional import Functional
 from .grid import Grid
@@ -179,22 +179,36 @@ def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
         B = np.zeros((t.size, n, p))
         for (b, term), k in zip(exact.sign_terms, exact.sign_columns):
             B[:, exact.blocks[b].coords[0], k] += term.sense * exact._amplitude_values(exact.blocks[b], term, y)
-        ds = np.stack([exact._switch(exact.blocks[b], term, y)[1][:, :n] for b, term in exact.selection_terms], axis=1)
+        s, ds = exact.switch_values(y)
+        ds = ds[:, :, :n]
         starts = np.array([start for start, _ in motion.modes])
         # the mode before a change at t_k (to MODE_TIME_TOL): z_k belongs to the interval that ends at t_k
         near = MODE_TIME_TOL * max(1.0, float(t[-1]))
         which = np.clip(np.searchsorted(starts, t - near, side="left") - 1, 0, len(motion.modes) - 1)
+        ball = np.zeros(p, dtype=bool)
+        for first, width in exact.balls:
+            ball[first : first + width] = True
         for index in np.unique(which):
             nodes = np.flatnonzero(which == index)
             mode = np.array(motion.modes[index][1], dtype=float)
+            # a vector sign: s/|s| while it moves; stuck or leaving, its equivalent control (projected onto B)
+            moving = ball & (mode == MOVING)
+            mode[ball & ~moving] = 0.0
             lam[nodes] = mode
+            for first, width in exact.balls:
+                if moving[first]:
+                    part = s[nodes, first : first + width]
+                    radius = np.linalg.norm(part, axis=1)[:, None]
+                    lam[nodes, first : first + width] = np.where(radius > 0, part / np.where(radius > 0, radius, 1.0),
+                                                                 np.eye(width)[0])
             sliding = np.flatnonzero(mode == 0)
             if sliding.size:
-                base = g[nodes] + np.einsum("nij,j->ni", B[nodes], mode)
+                base = g[nodes] + np.einsum("nij,nj->ni", B[nodes], np.where(mode == 0, 0.0, lam[nodes]))
                 grads = ds[nodes][:, sliding, :]  # (K, S, n)
                 matrix = grads @ B[nodes][:, :, sliding]  # (K, S, S)
                 rhs = -np.einsum("ksn,kn->ks", grads, base)[..., None]
-                lam[np.ix_(nodes, sliding)] = np.clip(np.linalg.solve(matrix, rhs)[..., 0], -1.0, 1.0)
+                lam[np.ix_(nodes, sliding)] = np.linalg.solve(matrix, rhs)[..., 0]
+                lam[nodes] = exact.project(lam[nodes])
         z = g + np.einsum("nij,nj->ni", B, lam)
     else:
         z = g

@@ -12,6 +12,9 @@ last points of one regime, extrapolated to the event:
   off side when the on phase has a single point);
 - off → off with a sign change (crossing the surface): s = 0 between the two points.
 
+A vector sign Sgn(s), s ∈ R^k (isotropic friction), is located the same way on |s| and |λ|
+(:func:`_ball_regimes`): a stop where |s| reaches 0, a break-away where |λ| reaches 1.
+
 Where the scheme is exact on the pieces (Radau IIA on quadratic motion, implicit Euler
 on the velocity of a block) one location is exact; otherwise the switch is re-located on
 the mesh that has a point there, and converges (see :mod:`qdframe.adaptive`).
@@ -24,6 +27,7 @@ there are one switch (two terms that change regime together, located twice): the
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -43,13 +47,42 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
         return np.zeros(0)
     grid = functional.grid
     y, lam = functional.arguments(xi), functional.selections(xi)
+    s = functional.switch_values(y, gradients=False)[0]
     found: list[float] = []
-    for k, (b, term) in enumerate(functional.selection_terms):
-        s = functional._switch(functional.blocks[b], term, y)[0]
-        found += [time for time, crossing in _locate(grid.t, grid.mesh, s, lam[:, k]) if crossings or not crossing]
+    for group in functional.selection_groups:
+        if group.width == 1:
+            pair = s[:, group.first], lam[:, group.first]
+        else:
+            pair = _ball_regimes(s[:, group.columns], lam[:, group.columns])
+        found += [time for time, crossing in _locate(grid.t, grid.mesh, *pair) if crossings or not crossing]
     times = np.clip(np.asarray(found, dtype=float), grid.t[0], grid.t[-1]) + 0.0  # + 0.0: no −0
     times = np.unique(np.round(times, 14))
     return merge_close(times, grid.mesh_times) if merge else times
+
+
+def polish(times: np.ndarray, events: Sequence[float], mesh: np.ndarray) -> np.ndarray:
+    """`times` located on the trajectory, each replaced by the nearest of `events` — the switch
+    times of the true motion, located by the event-driven integrator (:mod:`qdframe.filippov`)
+    to its tolerance — that lies within the larger length of the mesh intervals holding the
+    two; a time with no such event stays as located. For an initial-value problem whose
+    trajectory is certified (its replay is the solution itself), this gives the solution's
+    switch times where the trajectory's own, from a first-order scheme near a curved stop,
+    are only as good as its velocity (a stop time's error is the velocity's error over the
+    deceleration)."""
+    events = np.sort(np.asarray(events, dtype=float))
+    if times.size == 0 or events.size == 0:
+        return times
+
+    def step(time: float) -> float:
+        j = int(np.clip(np.searchsorted(mesh, time, side="right") - 1, 0, mesh.size - 2))
+        return float(mesh[j + 1] - mesh[j])
+
+    out = np.array(times, dtype=float)
+    for i, time in enumerate(out):
+        nearest = float(events[np.argmin(np.abs(events - time))])
+        if abs(nearest - time) <= max(step(time), step(nearest)):
+            out[i] = nearest
+    return np.unique(out)
 
 
 def merge_close(times: np.ndarray, mesh: np.ndarray) -> np.ndarray:
@@ -111,6 +144,29 @@ def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> 
         if root is not None:
             out.append((root, before != 0 and after != 0 and before != after))
     return out
+
+
+def _ball_regimes(s: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A vector sign's s (N, k) and λ (N, k) as one scalar pair for :func:`_locate`: ±|s| and
+    ±|λ|. Off the surface (s ≠ 0, |λ| = 1) the motion's regime is one side; it stops where |s|
+    reaches 0 (from the off side, |s| is smooth there: (t* − t)·|a + O(t* − t)|) and breaks
+    away where |λ| (the equivalent control while stuck) reaches 1. The sign flips where s
+    passes through 0 without sticking (its direction reverses between two points off the
+    surface, ⟨ŝ_k, ŝ_{k+1}⟩ < 0): a crossing; points on the surface take the sign of the next
+    point off it (the side they break away to), so that |λ| − 1 is what reaches 0 there."""
+    radius, size = np.linalg.norm(s, axis=1), np.linalg.norm(lam, axis=1)
+    small = radius <= ON_SURFACE * max(1.0, float(np.max(radius, initial=0.0)))
+    off = np.flatnonzero(~small)
+    sign = np.ones(s.shape[0])
+    if off.size:
+        unit = s[off] / radius[off, None]
+        flips = np.sum(unit[1:] * unit[:-1], axis=1) < 0.0
+        flips &= np.diff(off) == 1  # consecutive points off the surface: no stop between them
+        signs_off = np.concatenate([[1.0], np.cumprod(np.where(flips, -1.0, 1.0))])
+        following = np.clip(np.searchsorted(off, np.arange(s.shape[0])), 0, off.size - 1)
+        sign = signs_off[following]
+        sign[off] = signs_off
+    return sign * radius, sign * size
 
 
 def _run(side: np.ndarray, start: int, step: int, length: int = 3) -> np.ndarray:

@@ -16,7 +16,8 @@ from qdframe.models.friction import BlockStopStick, block_stop_stick_motion
 from qdframe.start import Starts
 
 SIMULATED = ("block-stop-stick", "block-breakaway", "slide-on-line", "slide-after-reaching", "two-surface-sliding",
-             "stick-slip-oscillator", "coulomb-block", "sliding-mode", "orthotropic-puck")
+             "stick-slip-oscillator", "coulomb-block", "sliding-mode", "orthotropic-puck", "isotropic-puck",
+             "isotropic-slide-3d")
 
 
 def _exact(name: str):

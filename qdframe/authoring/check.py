@@ -153,10 +153,11 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
             if group.values is not None:
                 report.pieces.append(checker.values_agree(f"{label} min-group {group.name!r} values", group, psi))
         for term in block.signs:
+            ball = term.ball  # a vector sign: s (N, k) and ∇s (N, k, n + m)
             report.pieces.append(checker.run(
                 f"{label} sign term {term.name!r} switch",
-                lambda yy, _ps, t=term: _as_group(t.switch(yy)),
-                value_shape=(1,),
+                lambda yy, _ps, t=term: _as_group(t.switch(yy), None if t.ball is None else t.ball.dim),
+                value_shape=(1,) if ball is None else (ball.dim,),
             ))
             if not isinstance(term.amplitude, (int, float)):
                 report.pieces.append(checker.amplitude(f"{label} sign term {term.name!r} amplitude", term.amplitude))
@@ -179,9 +180,14 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
     return report
 
 
-def _as_group(pair):
+def _as_group(pair, dim: int | None = None):
     value, grad = pair
     value, grad = np.asarray(value), np.asarray(grad)
+    if dim is not None:  # a BallSwitch
+        if value.ndim != 2 or grad.ndim != 3 or value.shape[1] != dim or grad.shape[1] != dim:
+            raise _Failed("bad shape", f"vector switch returned shapes {value.shape} and {grad.shape}, expected "
+                                       f"(N, {dim}) and (N, {dim}, n + m)")
+        return value, grad
     if value.ndim != 1 or grad.ndim != 2:
         raise _Failed("bad shape", f"switch returned shapes {value.shape} and {grad.shape}, expected (N,) and (N, n + m)")
     return value[:, None], grad[:, None, :]

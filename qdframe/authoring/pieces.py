@@ -6,6 +6,8 @@ for all nodes at once. The common ones, ready made:
 - :func:`affine`: y ↦ c + Σ a_i·y_i, values (N,) and gradients (N, n + m), the
   right-hand side of :meth:`~qdframe.model.SetBlock.equation` or a sign term's switch s(y);
   :func:`constant` and :func:`coordinate` are its special cases;
+- :func:`ball_switch`: the switch s(y) = W·y_J ∈ R^k of a vector sign (isotropic friction,
+  :class:`~qdframe.model.BallSwitch`);
 - :func:`abs_sum`: the amplitude groups of scale·Σ|y_i| for a
   :class:`~qdframe.model.SignTerm` (each |y_i| = max{y_i, −y_i}, paper Section 5).
 
@@ -17,6 +19,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
+
+from ..model import BallSwitch
 
 Affine = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
@@ -56,3 +60,21 @@ def abs_sum(indices: Sequence[int], scale: float, width: int) -> tuple[Callable,
         return pieces
 
     return tuple(group(i) for i in indices)
+
+
+def ball_switch(indices: Sequence[int], width: int, matrix: Sequence[Sequence[float]] | None = None,
+                name: str = "Sgn") -> BallSwitch:
+    """The :class:`~qdframe.model.BallSwitch` s(y) = W·(y_i for i in indices), W the k×k
+    identity unless `matrix` (k' rows) is given: Sgn(y_i, y_j) of isotropic friction on the
+    velocities y_i, y_j, or Sgn(W·v) of a weighted norm |W·v| (elliptic friction)."""
+    indices = list(indices)
+    weights = np.eye(len(indices)) if matrix is None else np.asarray(matrix, dtype=float)
+    if weights.ndim != 2 or weights.shape[1] != len(indices) or weights.shape[0] < 2:
+        raise ValueError(f"ball_switch: matrix of shape (k, {len(indices)}) with k ≥ 2 expected, got {weights.shape}")
+    gradient = np.zeros((weights.shape[0], width))
+    gradient[:, indices] = weights
+
+    def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return y @ gradient.T, np.broadcast_to(gradient, (y.shape[0],) + gradient.shape).copy()
+
+    return BallSwitch(switch, weights.shape[0], name)

@@ -9,7 +9,10 @@ node 0 and the quasidifferential is projected onto the remaining free unknowns.
 σ is the natural map of the complementarity λ ∈ Sgn(s) (as in contact mechanics, Alart
 and Curnier): it is zero exactly when λ = sign s for s ≠ 0 and λ ∈ [−1, 1] for s = 0, so
 with σ = 0 the sign term a·Sgn(s) contributes the point a·λ of Filippov's set, and
-sticking and sliding come out of the equations, not out of a smoothing band.
+sticking and sliding come out of the equations, not out of a smoothing band. A vector
+sign Sgn(s), s ∈ R^k (:class:`~qdframe.model.BallSwitch`, isotropic friction), has one
+selection vector λ ∈ B (the closed unit ball) per node, k columns, tied by the natural map
+of the second-order-cone complementarity, λ − P_B(λ + c·s) = 0: λ = s/|s| where s ≠ 0.
 
 One job per module, each mixed into :class:`Functional`:
 
@@ -27,20 +30,44 @@ Z = ∫_0^t z and its adjoint) comes from the grid, built from the scheme's own 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import InputError, ModelOutputError
 from ..grid import Grid
-from ..model import InclusionModel, SetBlock
+from ..model import InclusionModel, SetBlock, SignTerm
 from ..registry import plugin_code
 from .assembly import Quasidifferentials
 from .jacobians import DistanceSides, Jacobians
 from .pieces import Pieces
 from .terms import Residuals, Terms, Values
 
-__all__ = ["SIGN_MODES", "DistanceSides", "Functional", "Residuals", "Terms"]
+__all__ = ["SIGN_MODES", "DistanceSides", "Functional", "Residuals", "SelectionGroup", "Terms"]
 
 SIGN_MODES = ("exact", "band")
+
+
+@dataclass(frozen=True)
+class SelectionGroup:
+    """One switch's selection: `width` columns of λ from `first` (1 for a scalar Sgn(s), k for a
+    vector sign's λ ∈ B ⊂ R^k), and the first sign term on it with its block."""
+
+    first: int
+    width: int
+    block: int
+    term: SignTerm
+
+    @property
+    def columns(self) -> slice:
+        return slice(self.first, self.first + self.width)
+
+    @property
+    def names(self) -> list[str]:
+        if self.width == 1:
+            return [self.term.name]
+        base = self.term.ball.name  # type: ignore[union-attr]
+        return [f"{base}[{j}]" for j in range(self.width)]
 
 
 class Functional(Values, Quasidifferentials, Jacobians, Pieces):
@@ -72,14 +99,27 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
         with plugin_code(model, "blocks()"):
             self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
         # the sign terms in block order, (block index, term), and each one's selection column:
-        # terms with the same `switch` callable share one λ (one surface, one Filippov selection)
+        # terms with the same `switch` callable share one λ (one surface, one Filippov selection);
+        # a vector sign's BallSwitch has one selection vector λ ∈ B, k consecutive columns, and
+        # each of its terms the column of its component
         self.sign_terms = [] if signs == "band" else [
             (b, term) for b, block in enumerate(self.blocks) for term in block.signs
         ]
-        columns: dict[int, int] = {}
-        self.sign_columns = [columns.setdefault(id(term.switch), len(columns)) for _, term in self.sign_terms]
-        self.selection_terms = [self.sign_terms[self.sign_columns.index(k)] for k in range(len(columns))]
-        self.p = len(columns)
+        first: dict[int, int] = {}
+        self.selection_groups: list[SelectionGroup] = []
+        self.sign_columns = []
+        for b, term in self.sign_terms:
+            if id(term.switch) not in first:
+                width = term.ball.dim if term.ball is not None else 1
+                first[id(term.switch)] = sum(group.width for group in self.selection_groups)
+                self.selection_groups.append(SelectionGroup(first[id(term.switch)], width, b, term))
+            self.sign_columns.append(first[id(term.switch)] + (term.component or 0))
+        # per column: the (block, term) of its switch (a vector sign's first term, for each of its
+        # columns) and its name (a vector sign's columns: name[0], name[1], …)
+        self.selection_terms = [(group.block, group.term) for group in self.selection_groups for _ in range(group.width)]
+        self.selection_names = [name for group in self.selection_groups for name in group.names]
+        self.balls = [(group.first, group.width) for group in self.selection_groups if group.width > 1]
+        self.p = len(self.selection_terms)
         self.dim = 2 * self.n + self.m + self.p
         self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
         self.width = self.args + self.p  # width of the sides' gradients: (x, u, λ)
@@ -135,11 +175,11 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
         for i, j in self.resolved.items():
             xi[:, self.n + i] = xi[:, j]
         if self.p:
-            if selections is None:
-                y = self.arguments(xi)
+            if selections is None:  # the band's: P(s/β), the clip to [−1, 1] or the projection onto B
+                s = self.switch_values(self.arguments(xi))[0]
+                bands = np.array([group.term.band for group in self.selection_groups for _ in range(group.width)])
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    selections = np.stack([np.nan_to_num(np.clip(self._switch(self.blocks[b], term, y)[0] / term.band,
-                                                                 -1.0, 1.0)) for b, term in self.selection_terms], axis=1)
+                    selections = np.nan_to_num(self.project(s / bands))
             xi[:, 2 * self.n + self.m :] = selections
         return xi
 

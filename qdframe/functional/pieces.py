@@ -188,11 +188,14 @@ class Pieces:
             self._values_checked.add(id(group))
 
     def _switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked."""
+        """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked; a vector sign's
+        (:class:`~qdframe.model.BallSwitch`, k components) s (N, k) and ∇s (N, k, n + m)."""
         label = f"block {block.name or block.coords} sign term {term.name!r}"
         s, ds = term.switch(y)
-        self._check(f"{label} switch", s, (y.shape[0],))
-        self._check(f"{label} switch gradient", ds, (y.shape[0], self.args))
+        ball = term.ball
+        self._check(f"{label} switch", s, (y.shape[0],) if ball is None else (y.shape[0], ball.dim))
+        self._check(f"{label} switch gradient", ds,
+                    (y.shape[0], self.args) if ball is None else (y.shape[0], ball.dim, self.args))
         return s, ds
 
     def _amplitude(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, list[_Piece]]:
@@ -222,6 +225,11 @@ class Pieces:
             kappa_grad[:, column] = psi * sense
             return _SignPart(psi * signed, kappa_grad, amplitude, groups)
         s, ds = self._switch(block, term, y)
+        if term.ball is not None:
+            kappa, slope = _ball_band_kappa(term.band, s, term.component, psi * term.sense)
+            if slope is not None:
+                kappa_grad[:, : self.args] = np.einsum("nk,nkd->nd", slope, ds)
+            return _SignPart(kappa, kappa_grad, amplitude, groups)
         kappa, slope = _band_kappa(term.band, s, psi * term.sense)  # c(−a·Sgn(s), ψ) = c(a·Sgn(s), −ψ)
         if slope is not None:
             kappa_grad[:, : self.args] = slope[:, None] * ds
@@ -405,7 +413,8 @@ class Pieces:
                 value -= g
             for term, selection, amplitude, s in signs:
                 value -= (psi * selection[1] if selection is not None
-                          else _band_kappa(term.band, s, psi * term.sense)[0]) * amplitude
+                          else _ball_band_kappa(term.band, s, term.component, psi * term.sense)[0]
+                          if term.ball is not None else _band_kappa(term.band, s, psi * term.sense)[0]) * amplitude
             return value
 
         return np.maximum(0.0, np.maximum(ell(1.0, upper), ell(-1.0, lower)))
@@ -438,3 +447,33 @@ def _band_kappa(band: float, s: np.ndarray, psi: np.ndarray | float) -> tuple[np
         u = np.clip(-psi * s / band, 0.0, 1.0)
         return 1.0 - 2.0 * u * u * (3.0 - 2.0 * u), 12.0 * u * (1.0 - u) * psi / band
     return np.where(psi * s >= 0, 1.0, -1.0), None
+
+
+def _ball_band_kappa(band: float, s: np.ndarray, component: int,
+                     psi: np.ndarray | float) -> tuple[np.ndarray, np.ndarray | None]:
+    """κ_ψ of component j of a vector sign without a selection (:class:`~qdframe.model.SignTerm`)
+    and dκ/ds (N, k) (None where it is 0): the support function of the interval
+    [m − h, m + h], m = w·s_j/|s|, h = 1 − w, w = S(min(|s|/β, 1)), S(u) = 3u² − 2u³, at ψ:
+    κ = ψ·m + h. It holds s_j/|s| (|m − s_j/|s|| ≤ h), is the whole [−1, 1] at s = 0 and the
+    point s_j/|s| for |s| ≥ β, C¹ in s (w/|s| → 0 at s = 0). β = inf: [−1, 1] everywhere;
+    β = 0: s_j/|s|, the whole interval at s = 0 only."""
+    nodes, k = s.shape
+    radius = np.linalg.norm(s, axis=1)
+    psi = np.broadcast_to(np.asarray(psi, dtype=float), (nodes,))
+    if np.isinf(band):
+        return np.ones(nodes), None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = np.where(radius[:, None] > 0, s / radius[:, None], 0.0)
+    if band == 0:
+        return np.where(radius > 0, psi * unit[:, component], 1.0), None
+    u = np.minimum(radius / band, 1.0)
+    w = u * u * (3.0 - 2.0 * u)
+    slope_w = np.where(u < 1.0, 6.0 * u * (1.0 - u) / band, 0.0)  # dw/d|s|
+    kappa = psi * w * unit[:, component] + 1.0 - w
+    with np.errstate(divide="ignore", invalid="ignore"):
+        over = np.where(radius > 0, w / radius, 0.0)  # w/|s| (→ 3|s|/β² at 0)
+    e = np.zeros(k)
+    e[component] = 1.0
+    # d(w·s_j/|s|)/ds = (w/|s|)(e_j − ŝ_j ŝ) + ŝ_j·w'·ŝ;  d(1 − w)/ds = −w'·ŝ
+    dm = over[:, None] * (e[None, :] - unit[:, component, None] * unit) + (unit[:, component] * slope_w)[:, None] * unit
+    return kappa, psi[:, None] * dm - slope_w[:, None] * unit

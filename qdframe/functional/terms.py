@@ -5,7 +5,7 @@ integral Z = ∫_0^t z (:class:`~qdframe.grid.Grid`, from the scheme's rule):
 
     φ = ½ Σ_k w_k Σ_b h_b(x_k, z_k)²      χ = ½ Σ_{j∈J} (x0_j + Z_{N−1,j} − xT_j)²
     ω = ½ Σ_k w_k ‖e(x_k)‖²               υ = ½ Σ_k w_k ‖x_k − x0 − Z_k‖²
-    σ = ½ Σ_k w_k Σ_i (λ_ik − clip(λ_ik + c·s_i(y_k), −1, 1))²
+    σ = ½ Σ_k w_k Σ_i (λ_ik − clip(λ_ik + c·s_i(y_k), −1, 1))²   (a vector sign: λ − P_B(λ + c·s))
 
 I = φ + χ + ω + υ + σ; the objective is ∫cost + λ·I with a cost (Example 7.1), else I.
 :meth:`Values.ray` is the objective along a ray, what a line search minimizes.
@@ -130,28 +130,53 @@ class Values:
         )
 
     def selection_residual(self, xi: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The natural map r = λ − clip(λ + c·s(y), −1, 1) of every sign term, (N, p), and one
-        element of its generalized Jacobian in y = (x, u, λ), (N, p, n + m + p). r = 0 exactly
-        when λ ∈ Sgn(s). `scale` is c (default: the functional's `selection_scale`)."""
+        """The natural map r = λ − P(λ + c·s(y)) of every selection, (N, p), and one element of
+        its generalized Jacobian in y = (x, u, λ), (N, p, n + m + p). P is the clip to [−1, 1]
+        for a scalar Sgn(s) and the projection onto the unit ball B for a vector sign's k
+        columns (second-order-cone complementarity). r = 0 exactly when λ ∈ Sgn(s). `scale` is
+        c (default: the functional's `selection_scale`)."""
         c = self.selection_scale if scale is None else scale
         y, lam = self.arguments(xi), self.selections(xi)
-        nodes = y.shape[0]
-        residual = np.empty((nodes, self.p))
-        jacobian = np.zeros((nodes, self.p, self.width))
-        for k, (b, term) in enumerate(self.selection_terms):
-            s, ds = self._switch(self.blocks[b], term, y)
-            moved = lam[:, k] + c * s
-            inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
-            residual[:, k] = lam[:, k] - np.clip(moved, -1.0, 1.0)
-            jacobian[:, k, : self.args] = -c * inside[:, None] * ds
-            jacobian[:, k, self.args + k] = 1.0 - inside
+        s, ds = self.switch_values(y)
+        moved = lam + c * s
+        residual = lam - self.project(moved)
+        jacobian = np.zeros((y.shape[0], self.p, self.width))
+        inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
+        jacobian[:, :, : self.args] = -c * inside[:, :, None] * ds
+        columns = np.arange(self.p)
+        jacobian[:, columns, self.args + columns] = 1.0 - inside
+        for first, width in self.balls:  # P_B's Jacobian: I inside the ball, (I − ŵŵᵀ)/|w| outside
+            block = slice(first, first + width)
+            derivative = _ball_projection_jacobian(moved[:, block])
+            jacobian[:, block, : self.args] = -c * derivative @ ds[:, block]
+            jacobian[:, block, self.args + first : self.args + first + width] = np.eye(width) - derivative
         return residual, jacobian
 
     def _natural_map(self, y: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        """σ's r = λ − clip(λ + c·s(y), −1, 1), (N, p): :meth:`selection_residual` without its Jacobian."""
-        c = self.selection_scale
-        return np.stack([lam[:, k] - np.clip(lam[:, k] + c * self._switch(self.blocks[b], term, y)[0], -1.0, 1.0)
-                         for k, (b, term) in enumerate(self.selection_terms)], axis=1)
+        """σ's r = λ − P(λ + c·s(y)), (N, p): :meth:`selection_residual` without its Jacobian."""
+        return lam - self.project(lam + self.selection_scale * self.switch_values(y, gradients=False)[0])
+
+    def project(self, values: np.ndarray) -> np.ndarray:
+        """P of every selection's columns (N, p): the clip to [−1, 1], a vector sign's k columns
+        projected onto the unit ball (w/max(1, |w|))."""
+        out = np.clip(values, -1.0, 1.0)
+        for first, width in self.balls:
+            block = values[:, first : first + width]
+            out[:, first : first + width] = block / np.maximum(1.0, np.linalg.norm(block, axis=1))[:, None]
+        return out
+
+    def switch_values(self, y: np.ndarray, gradients: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """s (N, p) of every selection column (a vector sign's k components in its k columns) and,
+        with `gradients`, ∇s (N, p, n + m), checked."""
+        nodes = y.shape[0]
+        s = np.empty((nodes, self.p))
+        ds = np.empty((nodes, self.p, self.args)) if gradients else None
+        for group in self.selection_groups:
+            value, grad = self._switch(self.blocks[group.block], group.term, y)
+            s[:, group.columns] = value.reshape(nodes, group.width)
+            if ds is not None:
+                ds[:, group.columns] = grad.reshape(nodes, group.width, self.args)
+        return s, ds
 
     def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
         """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
@@ -224,3 +249,15 @@ class _Parabola:
 
     def __call__(self, gamma: float) -> float:
         return self.minimum + self.curvature * (gamma - self.vertex) ** 2
+
+
+def _ball_projection_jacobian(w: np.ndarray) -> np.ndarray:
+    """One element of the generalized Jacobian of P_B(w) = w/max(1, |w|), (N, k, k): I where
+    |w| ≤ 1, (I − ŵŵᵀ)/|w| where |w| > 1."""
+    radius = np.linalg.norm(w, axis=1)
+    outside = radius > 1.0
+    identity = np.broadcast_to(np.eye(w.shape[1]), (w.shape[0], w.shape[1], w.shape[1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = w / radius[:, None]
+        tangent = (identity - unit[:, :, None] * unit[:, None, :]) / radius[:, None, None]
+    return np.where(outside[:, None, None], tangent, identity)

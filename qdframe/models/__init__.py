@@ -5,7 +5,9 @@
 - ``paper_sets.py``: Examples 7.1–7.3 in the set language, not registered (the form to
   read; tests check it against the hand-written ones, which the registry serves);
 - ``friction.py``: Filippov problems with exact solutions (``block-stop-stick``, …);
-- ``planar_friction.py``: friction in the plane, in the set language (``orthotropic-puck``);
+- ``planar_friction.py``: friction in the plane and in space, in the set language
+  (``orthotropic-puck``; isotropic friction by the vector sign Sgn(v1, v2): ``isotropic-puck``,
+  ``isotropic-slide-3d``);
 - ``user_friction.py``: friction models as users bring them (a pendulum with pivot friction, a
   two-block chain, a relay oscillator), with reference motions from their hand-written equations;
 - ``bounded_input.py``: problems with a bounded input that the nosnoc peer states too

@@ -2,7 +2,8 @@
 
 An author writes the sets F_b(x) of x' ∈ F(x) with SymPy formulas in the states and
 controls — points, intervals, hulls (unions), intersections, Minkowski sums, scalings,
-Filippov sign terms a·Sgn(s), balls and ellipses — and never a derivative::
+Filippov sign terms a·Sgn(s) and the vector sign Sgn(v1, v2) of isotropic friction (v/|v|, the
+unit ball at v = 0), balls and ellipses — and never a derivative::
 
     from qdframe.sets import SetModel, Interval, intersection, Abs
 
@@ -35,7 +36,7 @@ of {e, −e}) and in costs and sign amplitudes, where it is the group max{e, −
 
 Modules: :mod:`~qdframe.sets.expressions` (formulas: checks, ψ, support formulas),
 :mod:`~qdframe.sets.base` (:class:`Set`, its algebra and normal form, :class:`Point`),
-:mod:`~qdframe.sets.primitives` (Interval, Box, Ball, Ellipse, Sgn),
+:mod:`~qdframe.sets.primitives` (Interval, Box, Ball, Ellipse, Sgn and its vector form),
 :mod:`~qdframe.sets.combinators` (sum, hull, intersection, scaling),
 :mod:`~qdframe.sets.compiler` (sets to :class:`~qdframe.model.SetBlock` pieces) and
 :mod:`~qdframe.sets.set_model` (:class:`SetModel`, :func:`define_model`).
@@ -48,7 +49,7 @@ from .base import Point, Set, as_set
 from .combinators import Hull, Intersection, Scaled, Sum, hull, intersection, minkowski_sum, union
 from .compiler import Compiled, compile_sets
 from .expressions import SetStructureError, norm1
-from .primitives import Ball, Box, Ellipse, Interval, Sgn
+from .primitives import Ball, Box, Ellipse, Interval, Sgn, VectorSgn
 from .set_model import SetModel, define_model
 
 __all__ = [

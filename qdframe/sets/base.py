@@ -106,6 +106,23 @@ class Set:
     def __repr__(self) -> str:
         return self.label
 
+    def __getitem__(self, index: int) -> "Set":
+        """Coordinate `index` of a product-like set (a point, a box, a vector sign, their sums
+        and scalings) as a set in R: ``Sgn(v1, v2)[0]``."""
+        if not (isinstance(index, (int, np.integer)) and -self.dim <= index < self.dim):
+            raise SetStructureError(f"{self.label}[{index!r}]", f"a coordinate index in 0..{self.dim - 1}")
+        try:
+            return self.component(int(index) % self.dim)
+        except _NotHere as exc:
+            raise SetStructureError(f"{self.label}[{index}]", "a set whose coordinates are sets of their own (points, "
+                                    f"boxes, vector signs, their sums and scalings); here {self.label} is {exc.what}") from None
+
+    def component(self, index: int) -> "Set":
+        """Coordinate `index` as a set in R (a product's factor), or _NotHere."""
+        if self.dim == 1 and index == 0:
+            return self
+        raise _NotHere("not a product of sets in R")
+
     # -- normal forms (overridden)
     def support(self) -> _Support:
         """The paper's form of this set's support function (max-groups, min-groups, sign terms)."""
@@ -131,7 +148,8 @@ def as_set(value: Any, dim: int | None = None) -> Set:
         return value
     point = Point(value)
     if dim is not None and point.dim != dim and point.dim == 1 and dim > 1:
-        raise SetStructureError(f"{point.label} + a set in R^{dim}", f"a point with {dim} coordinates")
+        raise SetStructureError(f"{point.label} + a set in R^{dim}", f"a point with {dim} coordinates (a tuple), or a "
+                                f"set in R: of a set in R^{dim} such as the vector sign S = Sgn(v1, v2), a coordinate S[i]")
     return point
 
 
@@ -145,6 +163,9 @@ class Point(Set):
 
     def polytope(self):
         return [self.f]
+
+    def component(self, index: int) -> "Set":
+        return Point(self.f[index])
 
 
 def _same_dim(sets: Sequence[Set], what: str) -> int:

@@ -15,7 +15,7 @@ import numpy as np
 import sympy as sp
 
 from .base import _MAX_VERTICES, Point, Set, _cartesian_sum, _NotHere, _role, _same_dim, _Support, as_set
-from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _s
+from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _refuse_singular, _s
 
 
 class Sum(Set):
@@ -40,6 +40,9 @@ class Sum(Set):
 
     def polytope(self):
         return _cartesian_sum([_role(s, "polytope", self.label) for s in self.sets], self.label)
+
+    def component(self, index: int) -> Set:
+        return Sum(*(_role(s, "component", self.label, index) for s in self.sets))
 
     def formulas(self, psi):
         parts = [_role(s, "formulas", self.label, psi) for s in self.sets]
@@ -141,6 +144,7 @@ class Scaled(Set):
     def __init__(self, inner: Set, factor: Any) -> None:
         self.inner = inner
         self.factor = _expr(factor, f"factor of {inner.label}")
+        _refuse_singular(self.factor, f"factor of {inner.label}")  # |v|·A: not C¹ at v = 0
         self.dim = inner.dim
         text = _s(self.factor)
         self.label = f"-{inner.label}" if self.factor == -1 else f"({text})·{inner.label}" if len(text) > 8 else f"{text}·{inner.label}"
@@ -187,6 +191,9 @@ class Scaled(Set):
         if support.mins or support.signs:
             raise _NotHere("not a polytope")
         return _cartesian_sum([vs for _, vs in support.polytopes], self.label)
+
+    def component(self, index: int) -> Set:
+        return Scaled(_role(self.inner, "component", self.label, index), self.factor)
 
     def formulas(self, psi):
         c = self._number()

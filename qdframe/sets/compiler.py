@@ -17,9 +17,10 @@ import numpy as np
 import sympy as sp
 
 from ..errors import InputError
-from ..model import Cost, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
-from .base import _Support, as_set
-from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _s, _smooth, _vector
+from ..model import BallSwitch, Cost, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
+from .base import _NotHere, _Support, as_set
+from .primitives import BallArgument, WholeVectorSign
+from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _refuse_singular, _s, _smooth, _vector
 
 
 def _scalar_groups(expr: sp.Expr, where: str, allow_min: bool) -> tuple[list[list[sp.Expr]], list[list[sp.Expr]]]:
@@ -31,6 +32,7 @@ def _scalar_groups(expr: sp.Expr, where: str, allow_min: bool) -> tuple[list[lis
     allowed = "smooth terms, c·|e| and c·Max(e_1, …)" + (", c·Min(e_1, …)" if allow_min else " with c > 0")
     for term in terms:
         if not any(term.has(f) for f in _NONSMOOTH):
+            _refuse_singular(term, where)
             smooth.append(term)
             continue
         coeff, rest = term.as_coeff_Mul()
@@ -125,12 +127,15 @@ class _Switches:
     Sign terms on one surface share one Filippov selection (:class:`~qdframe.model.SignTerm`),
     and Sgn(c·s) = sign(c)·Sgn(s) for every constant c ≠ 0, so a switch that is a constant
     multiple of one seen before (−s, 2s, or 0.866·v1 − 0.5·v2 against −0.866·v1 + 0.5·v2)
-    is that one, with the sign of the multiple: :meth:`find` returns (callable, ±1).
+    is that one, with the sign of the multiple: :meth:`find` returns (callable, ±1). A vector
+    switch (:meth:`find_ball`) is one with another up to a constant factor and a signed
+    permutation of its components.
     """
 
     def __init__(self, symbols) -> None:
         self.symbols = tuple(symbols)
         self.known: list[tuple[dict, Callable]] = []
+        self.balls: list[tuple[list[dict], BallSwitch]] = []  # vector switches: each component's coefficients
 
     def find(self, expr: sp.Expr) -> tuple[Callable, float]:
         terms = _coefficients(expr)
@@ -141,6 +146,36 @@ class _Switches:
         switch = _switch_cached(sp.expand(expr), self.symbols)
         self.known.append((terms, switch))
         return switch, 1.0
+
+    def find_ball(self, exprs: tuple[sp.Expr, ...]) -> tuple[BallSwitch, list[tuple[int, float]]]:
+        """The :class:`~qdframe.model.BallSwitch` of the vector switch s = `exprs`, and for each of
+        its components j the component of that switch's selection and the sign it enters with.
+        One vector surface, one selection: s' = c·P·s for a constant c > 0 and a signed
+        permutation P (Sgn(2·v), Sgn(−v) = −Sgn(v), Sgn(v2, v1)) is the switch s, and
+        Sgn(s')_j = ±Sgn(s)_π(j)."""
+        terms = [_coefficients(e) for e in exprs]
+        for reference, switch in self.balls:
+            if len(reference) != len(terms):
+                continue
+            mapping, scale = [], None
+            for own in terms:
+                found = [(i, _ratio(own, other)) for i, other in enumerate(reference)]
+                found = [(i, r) for i, r in found if r is not None and i not in [m for m, _ in mapping]]
+                if not found:
+                    break
+                i, ratio = found[0]
+                if scale is None:
+                    scale = abs(ratio)
+                if abs(abs(ratio) - scale) > SAME_SWITCH_RTOL * scale:
+                    break
+                mapping.append((i, 1.0 if ratio > 0 else -1.0))
+            else:
+                return switch, mapping
+        expanded = tuple(sp.expand(e) for e in exprs)
+        vectorized = _Vectorized(list(expanded), self.symbols)
+        switch = BallSwitch(lambda y: vectorized(y), len(expanded), f"Sgn({', '.join(_s(e) for e in expanded)})")
+        self.balls.append((terms, switch))
+        return switch, [(j, 1.0) for j in range(len(expanded))]
 
 
 def _coefficients(expr: sp.Expr) -> dict:
@@ -185,9 +220,24 @@ class Compiled:
 def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, switches: _Switches,
                where: str) -> SignTerm:
     """a·Sgn(s) = |a|·Sgn(±s) as sense·|a|·Sgn(s0), s0 the model's switch that ±s is a
-    constant multiple of (the first term on a surface has sense +1: its |a|·Sgn(±s) as written)."""
+    constant multiple of (the first term on a surface has sense +1: its |a|·Sgn(±s) as written).
+    A vector sign's component, a·λ_j with λ ∈ Sgn(s) ⊂ B: sense·|a|·λ_j on the shared
+    :class:`~qdframe.model.BallSwitch` of s, sense the sign of a times that of the multiple."""
     amplitude = sp.sympify(amplitude)
     name = label if amplitude == 1 else f"({_s(amplitude)})·{label}" if amplitude.is_Add else f"{_s(amplitude)}·{label}"
+    if isinstance(switch, BallArgument):
+        ball, mapping = switches.find_ball(switch.switch)
+        component, sense = mapping[switch.component]
+        if amplitude.is_number:
+            value: float | tuple = abs(float(amplitude))
+            sense *= 1.0 if float(amplitude) >= 0 else -1.0
+        else:
+            terms = sp.Add.make_args(sp.expand(amplitude, deep=False))
+            if all(t.as_coeff_Mul()[0] < 0 for t in terms):  # −a·λ_j: sense −1
+                amplitude, sense = -amplitude, -sense
+            maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
+            value = tuple(_scalar_pieces(group, switches.symbols) for group in maxes)
+        return SignTerm(value, ball, band, name, sense, component)
     if amplitude.is_number:
         a = float(amplitude)
         value: float | tuple = abs(a)
@@ -225,22 +275,29 @@ def compile_sets(
                 raise InputError(f"{model}.sets", f"keys that are states ({', '.join(map(str, states))}) or tuples of them", k)
             coords.append(index[k])
         name = "F[" + ", ".join(str(states[c]) for c in coords) + "]"
-        f = as_set(value)
+        try:
+            f = as_set(value)
+        except SetStructureError as exc:  # a formula refused where it became a point: name the model and block
+            raise SetStructureError(f"{model} {name} ({exc.field})", exc.expected, exc.got) from None
         if f.dim != len(coords):
-            raise SetStructureError(f"{model} {name} = {f.label}", f"a set in R^{len(coords)}", f"a set in R^{f.dim}")
-        support = f.support().merged()
-        used = set().union(*(e.free_symbols for e in _all_exprs(support))) if _all_exprs(support) else set()
-        psi_used = {s for s in used if s in _psi(f.dim)}
-        unknown = used - set(symbols) - psi_used
-        if unknown:
-            raise InputError(f"{model} {name}", f"formulas in the states and controls {', '.join(map(str, symbols))}",
-                             ", ".join(sorted(map(str, unknown))))
-        if support.signs and f.dim != 1:
-            raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
-        max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
-        min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
-        signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs)
-        blocks.append(SetBlock(tuple(coords), max_groups, min_groups, name, signs))
+            hint = (f"; a vector sign Sgn(v1, …) is a set in R^{f.dim}: use its coordinates, S = {f.label} and "
+                    f"S[0], S[1], … in one-coordinate blocks, or the whole in a block of {f.dim} coordinates"
+                    if _has_vector_sign(f) else "")
+            raise SetStructureError(f"{model} {name} = {f.label}", f"a set in R^{len(coords)}{hint}",
+                                    f"a set in R^{f.dim}")
+        if len(coords) > 1 and _has_vector_sign(f):  # a vector sign: one block per coordinate, λ shared
+            for i, c in enumerate(coords):
+                try:
+                    part = f.component(i)
+                except _NotHere as exc:
+                    raise SetStructureError(
+                        f"{model} {name} = {f.label}",
+                        "with a vector sign, a block of several coordinates whose coordinates are sets of their own "
+                        "(a point plus scalings of Sgn(v1, …), boxes): or write each coordinate's set, "
+                        "{v1: f1 - mu*S[0], v2: f2 - mu*S[1]} with S = Sgn(v1, v2)", exc.what) from None
+                blocks.append(_compile_block(part, (c,), f"F[{states[c]}]", symbols, switches, model))
+            continue
+        blocks.append(_compile_block(f, tuple(coords), name, symbols, switches, model))
     compiled_surface = None
     if surface is not None:
         formulas = _vector(surface, f"{model} surface")
@@ -259,8 +316,33 @@ def compile_sets(
     return Compiled(tuple(blocks), compiled_surface, compiled_cost)
 
 
+def _compile_block(f, coords: tuple[int, ...], name: str, symbols: tuple, switches: _Switches, model: str) -> SetBlock:
+    """One block's set in its normal form as a :class:`~qdframe.model.SetBlock`."""
+    support = f.support().merged()
+    used = set().union(*(e.free_symbols for e in _all_exprs(support))) if _all_exprs(support) else set()
+    psi_used = {s for s in used if s in _psi(f.dim)}
+    unknown = used - set(symbols) - psi_used
+    if unknown:
+        raise InputError(f"{model} {name}", f"formulas in the states and controls {', '.join(map(str, symbols))}",
+                         ", ".join(sorted(map(str, unknown))))
+    if support.signs and f.dim != 1:
+        raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
+    max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
+    min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
+    signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs)
+    return SetBlock(coords, max_groups, min_groups, name, signs)
+
+
+def _has_vector_sign(f) -> bool:
+    """Whether a set's normal form holds a whole vector sign (a block of several coordinates to split)."""
+    return any(isinstance(s, WholeVectorSign) for _, _, s, _ in f.support().signs)
+
+
 def _all_exprs(support: _Support) -> list[sp.Expr]:
     out = [v for _, vs in support.polytopes for vertex in vs for v in vertex]
     out += [g for _, gs in support.mins for g in gs]
-    out += [e for _, a, s, _ in support.signs for e in (sp.sympify(a), s)]
+    for _, a, s, _ in support.signs:
+        out.append(sp.sympify(a))
+        out += list(s.switch) if isinstance(s, BallArgument) else list(s.sign.switch) if isinstance(s, WholeVectorSign) \
+            else [s]
     return out

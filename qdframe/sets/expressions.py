@@ -57,7 +57,41 @@ def _smooth(value: Any, where: str) -> sp.Expr:
             "Abs(e)*Interval(-1, 1) is the hull of {e, −e}, Interval(lo, hi) has the kink of its own width",
             _s(expr),
         )
+    _refuse_singular(expr, where)
     return expr
+
+
+NORM_HINT = ("a Euclidean norm |v| = sqrt(v1² + v2²) is not C¹ at v = 0 and v/|v| is undefined there (the "
+             "sticking state of friction): Filippov's v/|v| is the vector sign Sgn(v1, v2), the closed unit ball "
+             "at v = 0 — S = Sgn(v1, v2), then {v1: f1 - mu*S[0], v2: f2 - mu*S[1]}")
+
+
+def singular_power(expr: sp.Expr) -> sp.Expr | None:
+    """A power b^e in `expr` that is not continuously differentiable (or not defined) where its
+    base vanishes — a fractional exponent e < 1 (sqrt, 1/sqrt, cube roots) of a base that is not
+    provably positive — or None. sqrt(x1² + 3) is fine; sqrt(v1² + v2²) (|v|) and
+    v1/sqrt(v1² + v2²) (v/|v|) are not."""
+    for power in sorted(sp.preorder_traversal(expr), key=sp.default_sort_key):
+        if not isinstance(power, sp.Pow):
+            continue
+        base, exponent = power.args
+        if not exponent.is_number or exponent.is_integer or not base.free_symbols:
+            continue
+        if float(exponent) < 1 and base.is_positive is not True:
+            return power
+    return None
+
+
+def _refuse_singular(expr: sp.Expr, where: str) -> None:
+    """A formula with a :func:`singular_power` is an error naming it and pointing to Sgn(v1, v2)."""
+    power = singular_power(expr)
+    if power is not None:
+        raise SetStructureError(
+            where,
+            f"a continuously differentiable formula (paper (supf)/(subf)), but {_s(power)} is not C¹ (or not "
+            f"defined) where {_s(power.args[0])} = 0; {NORM_HINT}",
+            _s(expr),
+        )
 
 
 def _vector(value: Any, where: str, smooth: bool = True) -> tuple[sp.Expr, ...]:

@@ -1,6 +1,7 @@
 """Issue 35, item 8: docs/authoring.md's friction chapter — the Coulomb pendulum with Sgn and
 sympy's sin, a start from qdframe.simulate — is the code of examples/coulomb_pendulum.py,
-and its outcomes are the ones the chapter states."""
+and its outcomes are the ones the chapter states; its vector sign (issue 38) is the code of
+examples/isotropic_friction.py."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from qdframe.sets import SetModel, Sgn
 ROOT = Path(__file__).resolve().parents[2]
 GUIDE = ROOT / "docs" / "authoring.md"
 EXAMPLE = ROOT / "examples" / "coulomb_pendulum.py"
+VECTOR_EXAMPLE = ROOT / "examples" / "isotropic_friction.py"
 
 
 @pytest.fixture(scope="module")
@@ -34,12 +36,14 @@ def _chapter() -> str:
 
 
 def test_the_chapters_code_is_the_examples():
-    code = EXAMPLE.read_text()
+    """The pendulum's two blocks are examples/coulomb_pendulum.py; the vector sign's two (issue
+    38: the puck in the set language, the hand-written BallSwitch) examples/isotropic_friction.py."""
     blocks = re.findall(r"```python\n(.*?)```", _chapter(), re.S)
-    assert len(blocks) == 2
-    for block in blocks:
+    assert len(blocks) == 4
+    for block, example in zip(blocks, [EXAMPLE, VECTOR_EXAMPLE, VECTOR_EXAMPLE, EXAMPLE]):
+        code = example.read_text()
         for line in block.splitlines():
-            assert line.strip() in code, f"not in examples/coulomb_pendulum.py: {line!r}"
+            assert line.strip() in code, f"not in examples/{example.name}: {line!r}"
 
 
 def test_the_chapter_says_where_the_names_come_from():
