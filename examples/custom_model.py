@@ -32,5 +32,5 @@ class Spreading(InclusionModel):
 
 
 if __name__ == "__main__":
-    result = qdframe.solve(Spreading(), nodes=101)
+    result = qdframe.solve(Spreading())
     print(result.summary())

@@ -60,6 +60,7 @@ CERTIFICATES = (BISECTION, REPLAY)
 ESTIMATE_FACTOR = 2.5  # 2^p/(2^p − 1) ≤ 2 for every order p ≥ 1, with a quarter's margin
 ROUNDING = 64 * np.finfo(float).eps  # relative: the estimate never claims less than rounding (its reference's too)
 REPLAY_TOL = 1e-11  # DOP853's rtol and atol in the replay
+UNMEASURED = 100  # a replay above its target adds this many REPLAY_TOL·max(1, |x|) for its unmeasured integration error
 
 Resolve = Callable[[Functional, SolveResult], SolveResult]  # a descent on a functional from a result
 
@@ -193,7 +194,9 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
         miss += float(np.max(np.abs(exact.surface.function(reference)[0])))
     scale = max(1.0, float(np.max(np.abs(result.x))))
     value = float(np.max(np.abs(difference))) + miss + ROUNDING * scale
-    if target is None or value <= target:
+    if target is not None and value > target:  # cannot certify: an allowance for the integration instead
+        value += UNMEASURED * REPLAY_TOL * scale
+    else:
         try:
             looser = integrate(system, result.x[0], grid.T, rtol=10 * REPLAY_TOL, atol=10 * REPLAY_TOL)
         except (FilippovError, np.linalg.LinAlgError, ValueError) as exc:

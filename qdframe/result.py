@@ -168,6 +168,7 @@ class SolveResult:
 
     def to_dict(self) -> dict[str, Any]:
         data = {k: v for k, v in self.__dict__.items() if k != "history"}
+        data["converged"] = self.converged  # a property: the discrete problem solved
         data["history"] = [asdict(record) for record in self.history]
         return _plain(data)
 

@@ -28,7 +28,6 @@ import numpy as np
 import pytest
 
 from conftest import check_certified
-from qdframe.bench.sweep import plan
 from qdframe.cli import build_parser
 from qdframe.status import EXIT_CODES, Status
 
@@ -68,6 +67,13 @@ NOT_RUN = {
     # (2026-11-25), most of it native's 500 iterations on 7.3; EXAMPLES runs it at N = 11, 101
     # with 100 iterations
     "python examples/compare_directions.py": "a 73-second measurement",
+    # the quick work-precision suite: 2–4 minutes each; tests/bench/test_bench_run.py runs the
+    # first and judges every row, and runs a sweep through the dask executor
+    "qdframe bench run --suite quick --peers --out quick": "a 3-minute measurement, run by test_bench_run.py",
+    "qdframe bench run --suite quick --peers --executor dask --out quick-dask": "the same through dask",
+    # every model with an exact solution at two targets, uniform ladders to 81921 points: 3–5
+    # minutes; tests/bench/test_bench_accuracy.py runs its code on one model, every step
+    "qdframe bench accuracy": "a 4-minute measurement, its code run by test_bench_accuracy.py",
     # sliding-mode-terminal on three grids and at accuracy 1e-3 and 1e-6: 5 min 1 s on the idle
     # 2-core machine (2026-11-24), 469 s in a loaded CI run, most of it the 1e-6 solve; the
     # README's `--accuracy 1e-3` variant runs here, the same code on every line but that solve
@@ -233,23 +239,24 @@ def _simulated_reaching(out: Outcome) -> None:
 
 
 def _friction_suite(out: Outcome) -> None:
-    """README: every problem of the suite ends `solved` at N = 101, 1001, 10001 with a strict
-    residual ≤ 1e-8."""
+    """README: every problem of the suite has its discrete problem solved at N = 101, 1001,
+    10001 (`uncertified`: a fixed grid is not meant to meet 1e-6) with a strict residual ≤ 1e-8."""
     rows = _table(out.stdout)
     assert len(rows) == 24
     for row in rows:
-        assert row["status"] == "solved" and _number(row["strict residual"]) <= 1e-8, row
+        assert _converged(row["status"]) and _number(row["strict residual"]) <= 1e-8, row
 
 
-SOLVED_BY = {  # README, "Which scheme for friction and sliding": (scheme, N) solved, and not
-    "radau-iia": {n: {"block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line",
-                      "slide-after-reaching", "coulomb-block"} | ({"two-surface-sliding", "sliding-mode-terminal"}
-                                                               if n == 1001 else set()) for n in (101, 1001)},
+SOLVED_BY = {  # README, "Which scheme for friction and sliding": (scheme, N) whose discrete problem is solved, and not
+    scheme: {n: {"block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
+                 "coulomb-block", "two-surface-sliding"} | ({"sliding-mode-terminal"}
+                                                         if (scheme, n) == ("radau-iia", 1001) else set())
+             for n in (101, 1001)}
+    for scheme in ("radau-iia", "trapezoid")
 }
 NOT_SOLVED_BY = {
-    "radau-iia": {101: {"two-surface-sliding", "sliding-mode-terminal"}, 1001: set()},
-    "trapezoid": {101: {"block-stop-stick", "block-stop-stick-bvp", "coulomb-block", "two-surface-sliding"},
-                  1001: {"block-stop-stick-bvp", "coulomb-block", "two-surface-sliding"}},
+    "radau-iia": {101: {"sliding-mode-terminal"}, 1001: set()},
+    "trapezoid": {101: {"sliding-mode-terminal"}, 1001: {"sliding-mode-terminal"}},
 }
 
 
@@ -259,32 +266,9 @@ def _friction_schemes(out: Outcome) -> None:
     for row in rows:
         scheme, nodes, model = row["scheme"], int(row["N"]), row["model"]
         if model in SOLVED_BY.get(scheme, {}).get(nodes, ()):
-            assert row["status"] == "solved" and _number(row["strict residual"]) <= 1e-8, row
+            assert _converged(row["status"]) and _number(row["strict residual"]) <= 1e-8, row
         if model in NOT_SOLVED_BY[scheme][nodes]:
-            assert row["status"] != "solved", row
-
-
-def _quick_suite(folder: str) -> Callable[[Outcome], None]:
-    def check(out: Outcome) -> None:
-        """README: 43 runs, each judged (tests/bench/test_bench_run.py checks the judgement)."""
-        rows = json.loads((out.cwd / folder / "results.json").read_text())["rows"]
-        assert len(rows) == 43
-        assert sorted((r["model"], r["direction"], r["line_search"], r["knob"]) for r in rows) == sorted(
-            (c.model, c.direction, c.line_search, c.knob) for c in plan("quick", peers=True).cases)
-        assert (out.cwd / folder / "report.md").exists()
-    return check
-
-
-def _bench_accuracy(out: Outcome) -> None:
-    """README: accuracy= meets 1e-4 and 1e-6 on the nine short-horizon models with an exact
-    solution, with fewer than 200 points, its estimate at or above the true error (the
-    long-horizon stick-slip-oscillator is a known failure: tests/test_accuracy.py)."""
-    rows = _table(out.stdout)
-    short = [r for r in rows if r["model"] != "stick-slip-oscillator"]
-    assert len({r["model"] for r in short}) == 9 and {r["target"] for r in short} == {"1e-04", "1e-06"}
-    for row in short:
-        assert row["≤ target"] == "yes" and int(row["adaptive N"]) < 200, row
-        assert _number(row["true error"]) <= _number(row["estimate"]) <= _number(row["target"]), row
+            assert not _converged(row["status"]), row
 
 
 def _accuracy_table(out: Outcome) -> None:
@@ -302,14 +286,19 @@ def _accuracy_table(out: Outcome) -> None:
 
 
 def _friction_example(out: Outcome) -> None:
-    """README: solved at every N, |v| ≤ 1e-8 in the stick phase, λ = −1/3 there."""
+    """README: the discrete problem solved at every N, |v| ≤ 1e-8 in the stick phase, λ = −1/3 there."""
     lines = [line.strip("| ").split(" | ") for line in out.stdout.splitlines() if line.startswith("| ")]
     rows = [line for line in lines[1:] if line[0].isdigit()]  # N, status, iterations, time, max |v| stuck, λ, error
     assert [r[0] for r in rows] == ["101", "1001", "10001"], out.stdout
     for nodes, status, _, _, v_stuck, lam, _ in rows:
-        assert status == "solved" and _number(v_stuck) <= 1e-8, out.stdout
+        assert _converged(status) and _number(v_stuck) <= 1e-8, out.stdout
         low, high = (_number(v) for v in lam.split("…"))
         assert low == pytest.approx(-1 / 3, abs=1e-6) and high == pytest.approx(-1 / 3, abs=1e-6)
+
+
+def _converged(status: str) -> bool:
+    """A table's status of a solved discrete problem: `solved`, or `uncertified` on a fixed grid."""
+    return status in (Status.SOLVED, Status.UNCERTIFIED)
 
 
 def _summary_status(out: Outcome) -> str:
@@ -410,9 +399,6 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe simulate paper-7.3 --from -0.2 --to 0 --x0=-1,1,-1,-1,1,1": _simulated_reaching,
     "qdframe bench friction": _friction_suite,
     "qdframe bench friction --schemes radau-iia,trapezoid --nodes 101,1001": _friction_schemes,
-    "qdframe bench run --suite quick --peers --out quick": _quick_suite("quick"),
-    "qdframe bench run --suite quick --peers --executor dask --out quick-dask": _quick_suite("quick-dask"),
-    "qdframe bench accuracy": _bench_accuracy,
     "python examples/accuracy.py": _accuracy_table,
     "python examples/friction.py": _friction_example,
     "python examples/intersection_model.py": _checked_and_solved,

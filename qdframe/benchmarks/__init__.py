@@ -9,10 +9,11 @@ import warnings
 
 from ..deprecation import moved
 
-_MODULES = ("accuracy", "bvp_peer", "cli", "filippov", "friction", "peers", "references", "replay", "report", "scale",
-            "sweep")
-for _name in _MODULES:  # the old module paths name the new modules (the same objects)
-    sys.modules[f"{__name__}.{_name}"] = globals()[_name] = importlib.import_module(f"qdframe.bench.{_name}")
+_MODULES = {name: f"qdframe.bench.{name}" for name in ("accuracy", "bvp_peer", "cli", "filippov", "friction", "peers",
+                                                        "references", "report", "scale", "sweep")}
+_MODULES["replay"] = "qdframe.projection_replay"  # the certificates' replay too: in the core since
+for _name, _new in _MODULES.items():  # the old module paths name the new modules (the same objects)
+    sys.modules[f"{__name__}.{_name}"] = globals()[_name] = importlib.import_module(_new)
 warnings.warn("qdframe.benchmarks moved to qdframe.bench; import from there (qdframe.benchmarks goes in the next "
               "release)", DeprecationWarning, stacklevel=2)
 
