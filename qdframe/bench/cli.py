@@ -71,7 +71,8 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
         "measured against the model's reference solution on the run's own time grid.",
     )
     run.add_argument("--suite", choices=sorted(SUITES), default="quick",
-                     help="quick (CI, under 2 minutes): 5 models, gauss-newton to N = 161 and accuracy= 1e-3, 1e-6, "
+                     help="quick (the tests run it, 2–4 minutes): 5 models, gauss-newton to N = 161, accuracy= 1e-3 and the "
+                     "default call (1e-6), "
                      "native to N = 41; standard: the paper's, plugin, friction, peer and T = 100 models, "
                      "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
                      "and line search")
