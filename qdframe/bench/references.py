@@ -40,7 +40,7 @@ from ..filippov import FilippovError
 from ..model import InclusionModel
 
 EXACT, EVENTS, PROJECTION = "exact", "events replay", "projection replay"
-RESTING = 1e-9  # |v| below this counts as v = 0 when an input is recovered from a trajectory
+RESTING = 1e-7  # |v| below this counts as v = 0 when an input is recovered from a trajectory (10× the residual tolerance: a solved block at rest has |v| up to ~1e-8)
 
 
 @dataclass(frozen=True)
@@ -217,12 +217,16 @@ def _interpolated(t: np.ndarray, values: np.ndarray) -> Callable[[float], np.nda
 def _coulomb_force(x, z, u, model, selections=None) -> np.ndarray:
     """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·σ, ±U), σ the trajectory's own
     selection where it gives one (the model's term is F·λ with λ ∈ Sgn(−v): σ = −λ), else
-    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)."""
+    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)
+    but at the point where the block comes to rest: its z_v is the deceleration of the
+    interval that ends there, so σ is the sign before it."""
     if selections is not None:
         sign = -np.asarray(selections, float)[:, 0]
-    else:
+    else:  # a point where the block comes to rest ends a moving interval: its z is the left limit's
         velocity = x[:, 1]
         sign = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
+        stops = np.flatnonzero((sign[1:] == 0.0) & (sign[:-1] != 0.0)) + 1
+        sign[stops] = sign[stops - 1]
     return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
 
 
