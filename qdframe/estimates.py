@@ -180,7 +180,7 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     controls = rule(result.u) if exact.m else None
     inputs = exact.m or solutions_form_a_set(exact)  # a choice to continue between the points
     if inputs and not exact.sign_terms:
-        return _collocation_replay(exact, result, rule)
+        return _collocation_replay(exact, result)
     try:
         system = model_system(exact, controls, rule(w) if inputs else None,
                               breaks=grid.mesh_times[1:-1] if inputs else ())
@@ -190,8 +190,7 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     reference = motion(t)
     difference = result.x - reference
     miss = exact.boundary_error(np.concatenate([reference, np.zeros_like(reference)], axis=1))
-    if exact.surface is not None:
-        miss += float(np.max(np.abs(exact.surface.function(reference)[0])))
+    miss += _surface_miss(exact, reference)
     scale = max(1.0, float(np.max(np.abs(result.x))))
     value = float(np.max(np.abs(difference))) + miss + ROUNDING * scale
     if target is not None and value > target:  # cannot certify: an allowance for the integration instead
@@ -208,7 +207,7 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
                     switch_times=tuple(motion.switch_times) if solution else None)
 
 
-def _collocation_replay(functional: Functional, result: SolveResult, rule: Callable) -> Estimate:
+def _collocation_replay(functional: Functional, result: SolveResult) -> Estimate:
     """:func:`replay` for a model without sign terms, by :func:`qdframe.projection_replay.replay`:
     z and u continued by the scheme's rule, the uncertainty its own."""
     from .projection_replay import replay as collocate
@@ -224,13 +223,18 @@ def _collocation_replay(functional: Functional, result: SolveResult, rule: Calla
     except (np.linalg.LinAlgError, ValueError) as exc:
         return Estimate(None, None, REPLAY, f"no replay: {exc}")
     reference = motion.x
-    miss = motion.end_miss
-    if functional.surface is not None:
-        miss += float(np.max(np.abs(functional.surface.function(reference)[0])))
+    miss = motion.end_miss + _surface_miss(functional, reference)
     scale = max(1.0, float(np.max(np.abs(result.x))))
     value = motion.error + miss + motion.uncertainty + ROUNDING * scale
     detail = f"the true motion from x(0) misses the conditions by {miss:.1e}" if miss else ""
     return Estimate(value, _local(grid, result.x - reference, 1.0), REPLAY, detail, reference=reference)
+
+
+def _surface_miss(functional: Functional, reference: np.ndarray) -> float:
+    """How far a replayed motion leaves the model's surface (0 without one)."""
+    if functional.surface is None:
+        return 0.0
+    return float(np.max(np.abs(functional.surface.function(reference)[0])))
 
 
 class _PointRule:
