@@ -94,7 +94,7 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
     else:
         functional, result = settle_switches(functional, result, own)
         if result.status == "solved" and scheme_name != functional.grid.scheme.name:
-            functional = like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme))
+            functional = like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme, functional.grid.switches))
             result = own(functional, result)
     best: Certified | None = None
     note, spent = "", []
@@ -110,8 +110,9 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
         if found.value <= target:
             break
         tau = refine(functional.grid, found.local, target, found.value)  # type: ignore[arg-type]
-        tau = pin(tau, switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False))  # kept on a point
-        finer = Grid.from_mesh(tau, functional.grid.scheme)
+        pinned = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
+        tau = pin(tau, pinned)  # kept on a point
+        finer = Grid.from_mesh(tau, functional.grid.scheme, pinned)
         if finer.nodes > max_nodes:
             note = f"the next mesh ({finer.nodes} points) would pass max_nodes = {max_nodes}"
             break
@@ -134,7 +135,7 @@ def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
     T = tau[-1]
     used: set[float] = set()
     for time in np.sort(times):
-        if not 0.0 < time < T:
+        if not SWITCH_SETTLED * T < time < (1.0 - SWITCH_SETTLED) * T:  # at an end: the end itself
             continue
         j = int(np.argmin(np.abs(tau - time)))
         if tau[j] in used and abs(tau[j] - time) <= SWITCH_SETTLED * T:
@@ -159,7 +160,7 @@ def settle_switches(functional: Functional, result: SolveResult, resolve: Resolv
         tau = pin(functional.grid.mesh_times, times)
         if np.array_equal(tau, functional.grid.mesh_times):
             break
-        pinned = like(functional, Grid.from_mesh(tau, functional.grid.scheme))
+        pinned = like(functional, Grid.from_mesh(tau, functional.grid.scheme, times))
         attempt = resolve(pinned, result)
         if attempt.status != "solved":  # keep the mesh and solution that were solved: the switches stay where they are
             break

@@ -500,8 +500,35 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     stalled: _Trial | None = None
     flooded: tuple[int, np.ndarray, ModelOutputError] | None = None  # the trial point that reached REJECTED_LIMIT
     uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
+    watchdogs = 0  # full-step rounds tried where the descent stalled (:func:`_watchdog`)
+
+    def escape() -> bool:
+        """Where the descent would stop `stationary`: a watchdog round of full steps (for a
+        solver whose steps are Newton steps, within the budget and WATCHDOG_ROUNDS); True
+        when it found a much lower iterate, which the descent continues from."""
+        nonlocal xi, terms, watchdogs
+        budget = options.max_iter - (len(history) - 1)
+        if not solver.full_steps or watchdogs >= WATCHDOG_ROUNDS or budget < 1:
+            return False
+        watchdogs += 1
+        path = _watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget))
+        if not path:
+            return False
+        for point, step in path:
+            xi = point
+            terms = functional.terms(xi)
+            history.append(IterationRecord(len(history), terms.objective, terms.I, 1.0,
+                                           float(np.sqrt(weights @ np.sum(step**2, axis=1))), float("nan"),
+                                           functional.boundary_error(xi), time.perf_counter() - clock, nodes))
+            if progress is not None:
+                progress(history[-1])
+        uncertified.clear()
+        solver.start(functional)  # its kept state (the damping) belongs to the stalled iterate
+        return True
+
     try:
-        for iteration in range(1, options.max_iter + 2):
+        while True:
+            iteration = len(history)
             if terms.objective <= options.tol and terms.I <= options.tol:
                 found = certify.checks(functional, xi, options.residual_tol)
                 if not certify.failures(found):
@@ -510,6 +537,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 uncertified.append(max(check.ratio for check in found))
                 if (len(uncertified) > CERTIFY_WINDOW
                         and uncertified[-1] * CERTIFY_SHRINK > uncertified[-1 - CERTIFY_WINDOW]):
+                    if escape():
+                        continue
                     status, message = "stationary", (f"the pointwise checks shrank by less than {CERTIFY_SHRINK:g}× in "
                                                      f"{CERTIFY_WINDOW} iterations with I ≤ tol")
                     break
@@ -521,6 +550,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 status, message = "stationary", f"deviation {deviation:.2e} ≤ ε at every node"
                 break
             if direction.stationary:
+                if escape():
+                    continue
                 status, message = "stationary", f"{solver.name}: no further decrease predicted"
                 break
             step = _keep_start(functional, solver, direction.step)
@@ -551,6 +582,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 if blocking:
                     stalled = min(blocking, key=lambda trial: trial.gamma)
                     break
+                if escape():
+                    continue
                 status, message = "stationary", "no step along the direction decreases the objective"
                 break
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
@@ -593,6 +626,59 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     return _result(functional, solver, search, options, xi, status, message, history, time.perf_counter() - clock)
 
 
+def _watchdog(functional: Functional, solver: DirectionSolver, xi: np.ndarray, objective: float,
+              options: DescentOptions, steps: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Full steps from ξ where the monotone descent stalled (the watchdog technique of
+    Chamberlain, Powell, Lemaréchal and Pedersen, 1982): semismooth Newton next to a kink
+    of the selections' natural map (a switch between two points of a fine grid) can need a
+    step that raises I before the next ones lower it far below, which a line search that
+    demands a decrease at every step never takes. From a fresh solver state (its damping
+    reset), up to `steps` steps γ = 1: the path to the first solved iterate (I ≤ tol and
+    every pointwise check passes), else to the lowest one if that is at most WATCHDOG_GAIN ×
+    `objective`, else to the one with I ≤ tol whose pointwise checks are nearest their
+    tolerances if CERTIFY_SHRINK× nearer than at ξ, else an empty list (the descent stops
+    where it stalled)."""
+    solver.start(functional)
+    path: list[tuple[np.ndarray, np.ndarray]] = []
+    best, best_at = objective, 0
+    worst = _worst_ratio(functional, xi, objective, options)  # the checks' worst ratio where I ≤ tol
+    nearer, nearer_at = worst / CERTIFY_SHRINK, 0
+    point = xi
+    try:
+        for count in range(1, steps + 1):
+            direction = solver.compute(functional, point, options.delta)
+            if direction.stationary:
+                break
+            step = _keep_start(functional, solver, direction.step)
+            point = point + step
+            terms = functional.terms(point)
+            if not np.isfinite(terms.objective):
+                break
+            path.append((point, step))
+            ratio = _worst_ratio(functional, point, terms.objective if terms.I <= options.tol else np.inf, options)
+            if ratio <= 1.0:
+                return path  # solved there
+            if ratio < nearer:
+                nearer, nearer_at = ratio, count
+            if terms.objective < best:
+                best, best_at = terms.objective, count
+    except (ModelOutputError, BackendError, np.linalg.LinAlgError):
+        pass  # a full step left where the model or the step's solver is defined: not taken
+    if best_at and best <= WATCHDOG_GAIN * objective:
+        return path[:best_at]
+    if nearer_at:  # I ≤ tol, the pointwise checks CERTIFY_SHRINK× nearer their tolerances
+        return path[:nearer_at]
+    return []
+
+
+def _worst_ratio(functional: Functional, xi: np.ndarray, objective: float, options: DescentOptions) -> float:
+    """The largest value ÷ tolerance of the pointwise checks at ξ where its objective is ≤ tol
+    (≤ 1: solved), else inf."""
+    if not objective <= options.tol:
+        return np.inf
+    return max(check.ratio for check in certify.checks(functional, xi, options.residual_tol))
+
+
 @dataclass(frozen=True)
 class _Trial:
     """A line-search trial step γ and, where the model was NaN/inf there, its error."""
@@ -610,6 +696,13 @@ class _Trial:
 # shrinks by less than 2× over some 20-iteration windows.
 CERTIFY_WINDOW = 40
 CERTIFY_SHRINK = 4.0
+# where the descent would stop `stationary`, a solver whose steps are Newton steps (`full_steps`)
+# gets up to WATCHDOG_ROUNDS rounds of WATCHDOG_STEPS full steps (:func:`_watchdog`), kept when
+# they end WATCHDOG_GAIN lower (a long stick-slip horizon on a fine mesh stalls with one selection
+# on the wrong side of a crossing, which a few full steps correct)
+WATCHDOG_ROUNDS = 3
+WATCHDOG_STEPS = 6
+WATCHDOG_GAIN = 1e-2
 NEAR_ITERATE = 1e-6  # a trial that moves ξ by at most this (relative, max-norm) is next to the iterate
 # line-search trial points where the model is NaN/inf that a descent rejects before it stops with the
 # last one's piece, node, t and state: a few are a line search overshooting into a region the model

@@ -30,12 +30,19 @@ def make_scheme(scheme: "str | Scheme") -> Scheme:
 @dataclass(frozen=True)
 class Grid:
     """`nodes` points on [0, T] laid out by `scheme` (default: the trapezoid rule), on a
-    uniform mesh or on the given mesh times `mesh_times` (see :meth:`from_mesh`)."""
+    uniform mesh or on the given mesh times `mesh_times` (see :meth:`from_mesh`).
+
+    `switches` are the switch times the mesh was laid out for (:mod:`qdframe.adaptive` pins a
+    mesh point on each); `left_limits` (indices) are the mesh points among them where the
+    scheme's rule integrates z over the interval before only (Radau IIA, implicit Euler; not
+    the trapezoid rule, whose z at a mesh point serves both intervals): there a Filippov
+    selection is the interval's own, λ_k = λ_{k−1} (:meth:`Functional.left_limits`)."""
 
     T: float
     nodes: int
     scheme: "str | Scheme" = "trapezoid"
     mesh_times: np.ndarray | None = field(default=None, compare=False, repr=False)
+    switches: tuple[float, ...] = field(default=(), compare=False, repr=False)
     t: np.ndarray = field(init=False, repr=False)
     weights: np.ndarray = field(init=False, repr=False)
     mesh: np.ndarray = field(init=False, repr=False)
@@ -71,18 +78,26 @@ class Grid:
         anchor = np.searchsorted(self.mesh, np.arange(self.nodes), side="right") - 1
         object.__setattr__(self, "_anchor", anchor)
         object.__setattr__(self, "_off_mesh", np.setdiff1d(np.arange(self.nodes), self.mesh))
+        # the mesh points on a switch time whose z belongs to the interval before them alone
+        # (the rule does not integrate an interval's first z): their selections are the left
+        # limits, the point before's (Functional.left_limits)
+        on_switch = np.isin(tau[1:-1], np.asarray(self.switches, dtype=float))
+        left = self.mesh[1:-1][on_switch] if 0 not in scheme.velocity_points else np.zeros(0, dtype=int)
+        object.__setattr__(self, "left_limits", left)
         last = np.zeros(self.nodes)
         last[-1] = 1.0
         object.__setattr__(self, "integral_weights", self.cumulative_adjoint(last))
 
     @classmethod
-    def from_mesh(cls, mesh: np.ndarray, scheme: "str | Scheme" = "trapezoid") -> "Grid":
-        """The grid of `scheme` on the mesh times `mesh` (increasing, from 0 to T)."""
+    def from_mesh(cls, mesh: np.ndarray, scheme: "str | Scheme" = "trapezoid",
+                  switches: "tuple[float, ...] | np.ndarray" = ()) -> "Grid":
+        """The grid of `scheme` on the mesh times `mesh` (increasing, from 0 to T); `switches`:
+        switch times, those on a mesh point make it a left-limit point (:attr:`left_limits`)."""
         tau = np.asarray(mesh, dtype=float)
         if tau.ndim != 1 or tau.size < 2:
             raise InputError("mesh", "at least two increasing mesh times from 0 to T", f"shape {tau.shape}")
         stages = make_scheme(scheme).stages
-        return cls(float(tau[-1]), stages * (tau.size - 1) + 1, scheme, tau)
+        return cls(float(tau[-1]), stages * (tau.size - 1) + 1, scheme, tau, tuple(float(v) for v in switches))
 
     @property
     def step(self) -> float:
@@ -102,7 +117,7 @@ class Grid:
         finer = np.empty(2 * tau.size - 1)
         finer[::2], finer[1::2] = tau, 0.5 * (tau[:-1] + tau[1:])
         finer[-1] = tau[-1]
-        return Grid.from_mesh(finer, self.scheme)
+        return Grid.from_mesh(finer, self.scheme, self.switches)
 
     @property
     def base(self) -> np.ndarray:

@@ -18,10 +18,7 @@ REPLAY_SLACK = 1e-8  # the replay's own integration (rtol 1e-11) and rounding, r
 
 # Known failures of the promise, with what was measured on the 2-core machine; README.md,
 # "Known failures", lists them too.
-KNOWN = {
-    ("stick-slip-oscillator", "accuracy"): "accuracy=1e-6 ends uncertified: estimate 1.0e-3 on 3233 points (its "
-                                           "true error), the refined 12929-point solve stationary; issue 31",
-}
+KNOWN: dict = {}  # (model, setting): why; none is
 
 
 NOT_RUN: dict = {}  # (model, setting): why it is left out; none is
@@ -151,8 +148,6 @@ def test_an_unmet_accuracy_says_why():
     assert "max_nodes = 200" in result.message and "exceeds the target" in result.message
 
 
-@pytest.mark.xfail(strict=True, reason="paper-7.3's default call ends uncertified: estimate 1.1e-2 on 43 points, the "
-                   "refined 169-point solve stationary (its pointwise checks stop shrinking); issue 31")
 def test_paper_73_is_certified_by_default():
     from qdframe.bench.references import judge
 

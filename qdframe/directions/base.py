@@ -95,6 +95,9 @@ class DirectionSolver(ABC):
     default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (descent.grid_schedule)
     coarsest_nodes: ClassVar[int] = 11  # the first grid of "auto"
     ladder_steps: ClassVar[tuple[int, ...]] = (1,)  # grids of "auto" per decade: (coarsest − 1)·step·10^k + 1
+    # its step is a Newton step: where the descent stalls it may take a few whole (γ = 1) to
+    # leave a kink (descent._watchdog); the paper's min-norm directions are not
+    full_steps: ClassVar[bool] = False
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional`: reset any state kept between iterations."""

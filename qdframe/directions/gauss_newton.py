@@ -70,6 +70,7 @@ class GaussNewton(DirectionSolver):
     default_continuation = "auto"
     coarsest_nodes = 101
     ladder_steps = (1, 3)  # 101, 301, 1001, 3001, …
+    full_steps = True  # a Levenberg–Marquardt step
     mu: float = 1e-10
     mu_min: float = 1e-12
     mu_max: float = 1e8
@@ -232,9 +233,18 @@ class _System:
                 root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
         if f.p:  # σ: the selections' natural map
             r, dr = f.selection_residual(xi)
-            add((root_w[:, None] * r).ravel(),
-                np.repeat(y_cols[:, None, :], f.p, axis=1).reshape(nodes * f.p, -1),
-                (root_w[:, None, None] * dr).reshape(nodes * f.p, -1))
+            cols = np.repeat(y_cols[:, None, :], f.p, axis=1)  # (N, p, width)
+            vals = root_w[:, None, None] * dr
+            left, held = f.left_limits(f.selections(xi))  # r_k = λ_k − λ_{k−1}: a −1 on λ_{k−1}
+            if left.size:
+                lam_cols = self.u_cols()[:, f.m :]  # (N, p)
+                extra_cols = lam_cols.copy()[:, :, None]  # elsewhere a zero on the row's own λ (left out)
+                extra_vals = np.zeros((nodes, f.p, 1))
+                extra_cols[left, :, 0] = lam_cols[left - 1]
+                extra_vals[left, :, 0] = np.where(held, -root_w[left, None], 0.0)
+                cols = np.concatenate([cols, extra_cols], axis=2)
+                vals = np.concatenate([vals, extra_vals], axis=2)
+            add((root_w[:, None] * r).ravel(), cols.reshape(nodes * f.p, -1), vals.reshape(nodes * f.p, -1))
         return np.concatenate(residuals), rows.matrix()
 
     def _constraints(self) -> sp.csr_matrix:

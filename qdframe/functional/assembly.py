@@ -46,7 +46,11 @@ class Quasidifferentials:
         # σ: the natural map's residual times an element of its generalized Jacobian
         if self.p:
             r, dr = self.selection_residual(xi)
-            smooth += self._embed(np.einsum("ki,kid->kd", r, dr))
+            gradient = np.einsum("ki,kid->kd", r, dr)
+            left, held = self.left_limits(self.selections(xi))  # r_k = λ_k − λ_{k−1}: −r_k on λ_{k−1}
+            if left.size:
+                gradient[left - 1, self.args :] -= np.where(held, r[left], 0.0)
+            smooth += self._embed(gradient)
         sub_groups: list[tuple[np.ndarray, np.ndarray]] = []
         sup_groups: list[tuple[np.ndarray, np.ndarray]] = []
         for block, side in zip(self.blocks, self._block_states(y, z, self.selections(xi))):

@@ -21,6 +21,8 @@ import numpy as np
 
 from .pieces import _reduce_last
 
+SATURATED = 1e-6  # |λ| ≥ 1 − this: a selection at an end of its set, off its surface (as qdframe.switches)
+
 
 @dataclass(frozen=True)
 class Terms:
@@ -150,11 +152,39 @@ class Values:
             derivative = _ball_projection_jacobian(moved[:, block])
             jacobian[:, block, : self.args] = -c * derivative @ ds[:, block]
             jacobian[:, block, self.args + first : self.args + first + width] = np.eye(width) - derivative
+        left, held = self.left_limits(lam)  # λ_k − λ_{k−1}: its −1 on λ_{k−1} is the caller's (mask `held`)
+        if left.size:
+            points, cols = np.nonzero(held)
+            residual[left[points], cols] = lam[left[points], cols] - lam[left[points] - 1, cols]
+            jacobian[left[points], cols, :] = 0.0
+            jacobian[left[points], cols, self.args + cols] = 1.0
         return residual, jacobian
+
+    def left_limits(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The left-limit selections: the mesh points on a switch time (:attr:`Grid.left_limits`)
+        and, (L, p), the columns there whose selection at the point before is at an end of its
+        set (|λ| = 1: the interval ends off that surface). Such a selection is the point
+        before's, λ_k = λ_{k−1}, in place of the natural map: a Filippov selection at a point
+        on the switch is any of Sgn(0), and the one that keeps the interval's polynomial
+        accurate is the regime the interval ends in (a crossing's or a stop's side before
+        it). Columns on the surface before the point (sliding, sticking), and a vector sign's,
+        keep the natural map."""
+        left = self.grid.left_limits if self.p else np.zeros(0, dtype=int)
+        if not left.size:
+            return left, np.zeros((0, self.p), dtype=bool)
+        held = np.abs(lam[left - 1]) >= 1.0 - SATURATED
+        for first, width in self.balls:  # a vector sign keeps its natural map (λ_k = λ_{k−1} at a curved
+            held[:, first : first + width] = False  # stop left the isotropic puck unsolved: 486 iterations)
+        return left, held
 
     def _natural_map(self, y: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """σ's r = λ − P(λ + c·s(y)), (N, p): :meth:`selection_residual` without its Jacobian."""
-        return lam - self.project(lam + self.selection_scale * self.switch_values(y, gradients=False)[0])
+        residual = lam - self.project(lam + self.selection_scale * self.switch_values(y, gradients=False)[0])
+        if y.shape[0] == self.grid.nodes:
+            left, held = self.left_limits(lam)
+            points, cols = np.nonzero(held)
+            residual[left[points], cols] = lam[left[points], cols] - lam[left[points] - 1, cols]
+        return residual
 
     def project(self, values: np.ndarray) -> np.ndarray:
         """P of every selection's columns (N, p): the clip to [−1, 1], a vector sign's k columns
