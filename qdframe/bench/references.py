@@ -81,7 +81,10 @@ def judge(
     peer's own input u(t); else the input is recovered at the points t from the trajectory
     (:data:`INPUTS`, from the trajectory's own `selections` λ (N, p) where it has them) and
     continued between them by `velocity` (values at t ↦ a function of time: the scheme's own
-    rule for x', :meth:`~qdframe.schemes.base.Scheme.velocity`; default piecewise linear)."""
+    rule for x', :meth:`~qdframe.schemes.base.Scheme.velocity`; default piecewise linear).
+    Where the trajectory leaves its input undetermined at some points (a recoverer returns
+    several admissible candidates), each is replayed and the nearest true motion is the
+    reference: any admissible input whose motion is that near proves the distance."""
     start = time.perf_counter()
     t, x, z = np.asarray(t, float), np.asarray(x, float), np.asarray(z, float)
     which = kind(model)
@@ -95,9 +98,12 @@ def judge(
         from .filippov import integrate, statement
 
         best = None
-        for label, rule, breaks in ([("the peer's own input", None, ())] if inputs is not None
-                                    else continuations(t, velocity)):
-            drive = inputs if rule is None else _Drive(rule, INPUTS[model.name](x, z, u, model, selections), breaks)
+        recovered = [] if inputs is not None else INPUTS[model.name](x, z, u, model, selections)
+        recovered = [recovered] if isinstance(recovered, np.ndarray) else list(recovered)
+        drives = ([("the peer's own input", inputs)] if inputs is not None else
+                  [(label, _Drive(rule, values, breaks)) for label, rule, breaks in continuations(t, velocity)
+                   for values in recovered])
+        for label, drive in drives:
             try:
                 reference = integrate(statement(model, drive), x[0], float(t[-1]))(t)
             except FilippovError as exc:
@@ -214,20 +220,24 @@ def _interpolated(t: np.ndarray, values: np.ndarray) -> Callable[[float], np.nda
     return drive
 
 
-def _coulomb_force(x, z, u, model, selections=None) -> np.ndarray:
+def _coulomb_force(x, z, u, model, selections=None) -> np.ndarray | list[np.ndarray]:
     """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·σ, ±U), σ the trajectory's own
     selection where it gives one (the model's term is F·λ with λ ∈ Sgn(−v): σ = −λ), else
-    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so)
-    but at the point where the block comes to rest: its z_v is the deceleration of the
-    interval that ends there, so σ is the sign before it."""
+    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so).
+    Without selections the point where the block comes to rest is undetermined: its z_v may
+    be the deceleration of the interval that ends there (σ the sign before it) or already
+    the rest's (σ = 0, where the block stops between two points): both candidates."""
+    def force(sign: np.ndarray) -> np.ndarray:
+        return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
+
     if selections is not None:
-        sign = -np.asarray(selections, float)[:, 0]
-    else:  # a point where the block comes to rest ends a moving interval: its z is the left limit's
-        velocity = x[:, 1]
-        sign = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
-        stops = np.flatnonzero((sign[1:] == 0.0) & (sign[:-1] != 0.0)) + 1
-        sign[stops] = sign[stops - 1]
-    return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
+        return force(-np.asarray(selections, float)[:, 0])
+    velocity = x[:, 1]
+    rest = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
+    stops = np.flatnonzero((rest[1:] == 0.0) & (rest[:-1] != 0.0)) + 1
+    keep = rest.copy()
+    keep[stops] = rest[stops - 1]
+    return [force(keep), force(rest)] if stops.size else force(rest)
 
 
 def _sliding_inputs(x, z, u, model, selections=None) -> np.ndarray:
