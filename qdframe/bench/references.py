@@ -113,7 +113,7 @@ def judge(
                 continue
             miss = end_miss(model, reference)
             error = float(np.max(np.abs(x - reference)))
-            if best is None or max(error, miss) < max(best[0], best[1]):
+            if best is None or (max(error, miss), error) < (max(best[0], best[1]), best[0]):  # ties: the nearer
                 best = (error, miss, label)
         if best is None:
             raise last

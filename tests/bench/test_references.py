@@ -72,3 +72,19 @@ def test_an_events_replay_recovers_the_input_from_the_velocities():
     moved = judge(model, t, shifted, z)
     assert exact.distance < 2e-3 and exact.end_error == pytest.approx(2 / 3, abs=2e-3)
     assert moved.distance == pytest.approx(1e-2, abs=2e-3) and moved.error == pytest.approx(moved.end_error)
+
+
+def test_a_block_that_comes_to_rest_between_two_points_is_judged_by_the_admissible_input_that_fits():
+    """v' = −2 from v = 2 (u = −1 against friction 1) reaches p = 1 and stops at t = 1, between
+    two points, and rests there (the end conditions). The first point at rest has z_v = 0:
+    without the run's selections its input is undetermined, the sign before (u = 1 there)
+    or rest (u = 0). Both are admissible, so the judge replays both and takes the nearer:
+    measured 6.9e-5 with rest, 2.2e-4 with the sign before (each linearly continued: the true
+    input's jump from −1 to 0 at t = 1 falls between the points)."""
+    model = qdframe.load_model("coulomb-rest-to-rest")
+    t = np.linspace(0.0, 2.0, 40)
+    v = np.maximum(2.0 - 2.0 * t, 0.0)
+    x = np.stack([np.where(t < 1.0, 2.0 * t - t**2, 1.0), v], axis=1)
+    z = np.stack([v, np.where(t < 1.0, -2.0, 0.0)], axis=1)
+    verdict = judge(model, t, x, z)
+    assert verdict.error < 1e-4, verdict
