@@ -44,6 +44,7 @@ NOT_RUN = {
     "qdframe solve heated-room --direction damped-gauss-newton --line-search shrinking": "the guide's plugin",
     "qdframe solve heated-room --scheme theta": "the guide's plugin",
     "python -m pytest -q my-models/tests": "the guide's plugin package, written by its reader",
+    "qdframe solve my-pendulum": "the README's plugin, once its reader registers it",
     # a measurement of every QP backend on 10000-row batches, 3 passes: 296 s on the 2-core
     # machine (exit 0, 2026-11-23); test_bench_directions_at_a_small_size runs its code path
     "qdframe bench directions --nodes 10000 --repeat 3 --directions native,osqp,clarabel,cvxpy,qpsolvers:daqp,"
@@ -183,7 +184,8 @@ def _result(data: dict) -> types.SimpleNamespace:
 
 
 def _readme() -> str:
-    return " ".join((ROOT / "README.md").read_text().split())
+    """The documentation's text, README and docs/ pages, whitespace folded (quotes wrap)."""
+    return " ".join(" ".join(path.read_text() for path in DOCS).split())
 
 
 # ------------------------------------------------------------------------- outcomes
@@ -212,7 +214,7 @@ def _unreachable_end(out: Outcome) -> None:
     readme = " ".join(_readme().split())  # the quote wraps across lines
     quoted = re.search(r"`qdframe solve paper-7\.2 --xT=3,0` \(.*?\) ends(?:, with exit status \d+,)? "
                        r"`(\w+) \((.+?)\)`;", readme)
-    assert quoted, "README no longer quotes the message"
+    assert quoted, "the docs no longer quote the message"
     assert (out.data["status"], out.data["message"]) == quoted.groups()
     assert out.data["I"] > 1e-10
 
@@ -456,3 +458,21 @@ def test_bench_directions_at_a_small_size(fresh_copy):
     done = subprocess.run(words, cwd=fresh_copy, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "| qpsolvers:proxqp |" in done.stdout
+
+
+def test_the_readme_is_short_and_links_every_docs_page():
+    """Issue 33: a README a newcomer reads in five minutes (≤ 350 lines), the rest in docs/,
+    every page reached from it."""
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 350
+    missing = [page.name for page in sorted((ROOT / "docs").glob("*.md")) if f"](docs/{page.name}" not in text]
+    assert not missing, f"README does not link {missing}"
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda path: path.name)
+def test_every_relative_link_of_the_docs_resolves(path):
+    """Links and images to files of the repository point at files that exist (anchors aside)."""
+    targets = re.findall(r"\]\(([^)\s]+)\)", path.read_text())
+    broken = [target for target in targets if not re.match(r"[a-z]+://|#", target)
+              and not (path.parent / target.split("#")[0]).exists()]
+    assert not broken, broken

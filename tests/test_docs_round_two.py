@@ -12,7 +12,7 @@ import qdframe
 from qdframe.cli import main
 from qdframe.simulate import Simulation, simulate
 
-README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+README = (Path(__file__).resolve().parents[1] / "docs" / "guide.md").read_text()  # the Python API's page
 
 
 def test_the_readme_says_simulate_returns_a_simulation():
