@@ -100,7 +100,8 @@ class DirectionSolver(ABC):
     full_steps: ClassVar[bool] = False
 
     def start(self, functional: "Functional") -> None:
-        """Called once before a descent on `functional`: reset any state kept between iterations."""
+        """Called once before a descent on `functional` (and before a watchdog round of full steps:
+        descent._watchdog): reset any state kept between iterations."""
 
     def check_options(self) -> None:
         """Raise :class:`OptionError` for the first option outside its range (`option_rules`;
