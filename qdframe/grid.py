@@ -97,7 +97,13 @@ class Grid:
         if tau.ndim != 1 or tau.size < 2:
             raise InputError("mesh", "at least two increasing mesh times from 0 to T", f"shape {tau.shape}")
         stages = make_scheme(scheme).stages
-        return cls(float(tau[-1]), stages * (tau.size - 1) + 1, scheme, tau, tuple(float(v) for v in switches))
+        try:
+            times = np.asarray(switches, dtype=float).ravel()
+        except (TypeError, ValueError):
+            times = np.array([np.nan])
+        if not np.all(np.isfinite(times)):
+            raise InputError("switches", "finite switch times (numbers)", switches)
+        return cls(float(tau[-1]), stages * (tau.size - 1) + 1, scheme, tau, tuple(times.tolist()))
 
     @property
     def step(self) -> float:

@@ -16,6 +16,7 @@ from qdframe.descent import DescentOptions, _watchdog, make_direction
 from qdframe.directions.base import Direction, DirectionSolver
 from qdframe.directions.gauss_newton import _System
 from qdframe.functional import Functional
+from qdframe.errors import InputError
 from qdframe.grid import Grid
 from qdframe.models.friction import stick_slip_oscillator_motion
 
@@ -120,3 +121,10 @@ def test_a_stick_slip_oscillator_over_a_few_reversals_is_certified_by_default(T,
     reversals = np.pi * np.arange(1, int(T / np.pi) + 1)
     assert result.switch_times == pytest.approx(reversals, abs=1e-8)
     assert result.nodes <= points
+
+
+def test_switch_times_that_are_not_finite_numbers_are_refused():
+    with pytest.raises(InputError, match="switches: expected finite switch times"):
+        Grid.from_mesh([0.0, 0.5, 1.0], "radau-iia", switches=(0.5, float("nan")))
+    with pytest.raises(InputError, match="switches"):
+        Grid.from_mesh([0.0, 0.5, 1.0], "radau-iia", switches=("half",))

@@ -152,13 +152,19 @@ class Values:
             derivative = _ball_projection_jacobian(moved[:, block])
             jacobian[:, block, : self.args] = -c * derivative @ ds[:, block]
             jacobian[:, block, self.args + first : self.args + first + width] = np.eye(width) - derivative
-        left, held = self.left_limits(lam)  # λ_k − λ_{k−1}: its −1 on λ_{k−1} is the caller's (mask `held`)
-        if left.size:
-            points, cols = np.nonzero(held)
-            residual[left[points], cols] = lam[left[points], cols] - lam[left[points] - 1, cols]
-            jacobian[left[points], cols, :] = 0.0
-            jacobian[left[points], cols, self.args + cols] = 1.0
+        rows, cols = self._hold_left_limits(residual, lam)  # its −1 on λ_{k−1} is the caller's (Functional.left_limits)
+        jacobian[rows, cols, :] = 0.0
+        jacobian[rows, cols, self.args + cols] = 1.0
         return residual, jacobian
+
+    def _hold_left_limits(self, residual: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`residual` (N, p) with λ_k − λ_{k−1} at the held left-limit entries (:meth:`left_limits`),
+        in place; returns those entries' (points, columns)."""
+        left, held = self.left_limits(lam)
+        points, cols = np.nonzero(held)
+        rows = left[points]
+        residual[rows, cols] = lam[rows, cols] - lam[rows - 1, cols]
+        return rows, cols
 
     def left_limits(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The left-limit selections: the mesh points on a switch time (:attr:`Grid.left_limits`)
@@ -181,9 +187,7 @@ class Values:
         """σ's r = λ − P(λ + c·s(y)), (N, p): :meth:`selection_residual` without its Jacobian."""
         residual = lam - self.project(lam + self.selection_scale * self.switch_values(y, gradients=False)[0])
         if y.shape[0] == self.grid.nodes:
-            left, held = self.left_limits(lam)
-            points, cols = np.nonzero(held)
-            residual[left[points], cols] = lam[left[points], cols] - lam[left[points] - 1, cols]
+            self._hold_left_limits(residual, lam)
         return residual
 
     def project(self, values: np.ndarray) -> np.ndarray:
