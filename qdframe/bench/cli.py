@@ -87,8 +87,9 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
     run.add_argument("--bvp-tols", type=tolerances, metavar="E,..",
                      help="solve_bvp's tol ladder (default: the suite's; 'none' for none)")
     run.add_argument("--peers", action="store_true",
-                     help="also run the peers on the models they can state: nosnoc (Filippov problems with "
-                     "an input) and scipy's solve_bvp (the friction and sliding models)")
+                     help="also run the peers on the models they can state: nosnoc (the friction and sliding "
+                     "models, and the problems with a bounded input) and scipy's solve_bvp (the friction and "
+                     "sliding models)")
     run.add_argument("--executor", choices=("local", "dask"), default="local",
                      help="local: one run after another here; dask: on dask.distributed (default local)")
     run.add_argument("--scheduler", metavar="ADDRESS",
@@ -169,7 +170,7 @@ def _scale(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .references import cross_check
-    from .report import ratio_table, summary_table, time_table, write_report
+    from .report import ranking, ratio_table, time_table, write_report
     from .sweep import plan, run_sweep
 
     if args.scheduler and args.executor != "dask":
@@ -201,7 +202,7 @@ def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         print(time_table(outcome.rows))
         if any(case.peer for case in sweep.cases):
             print("\n" + ratio_table(outcome.rows))
-        print("\n" + summary_table(outcome.rows, sweep.settings["time_limit_s"]))
+        print("\n" + ranking(outcome.rows, sweep.settings["time_limit_s"]))
         print(f"\n{outcome.ran} runs in {outcome.seconds:.1f} s ({outcome.resumed} resumed); "
               f"{paths['report']}, {paths['work_precision']}, results.csv, results.json in {args.out}")
     return 0

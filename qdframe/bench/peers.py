@@ -1,23 +1,34 @@
-"""Peers: nosnoc, run on the problems it can state (solve_bvp: :mod:`.bvp_peer`).
+"""Peers: nosnoc, run on every problem it can state (solve_bvp: :mod:`.bvp_peer`).
 
-nosnoc (PyPI ``nosnoc``, FESD + homotopy + IPOPT through CasADi) solves the two problems
-of :mod:`qdframe.models.bounded_input` as optimal-control problems: the bounded input is a
-control with box bounds, the cost is nosnoc's example cost (∫u² for the block, ∫(v1² + v2²)
-for the sliding-mode problem) and the end state is a terminal equality constraint.
+nosnoc (PyPI ``nosnoc``, FESD + homotopy + IPOPT through CasADi) states a Filippov system
+in Stewart's form: subsystems i with modes F_i = [f_i1, f_i2], x' = Σ_i F_i θ_i, each θ_i in
+the simplex, the mode chosen by the sign of a switching function c_i (S_i = [[1], [−1]]).
 
-Discretization for a sweep's grid of N nodes: 10 control stages × ⌈(N − 1)/10⌉ finite
-elements each (N − 1 elements for N = 11, 51, 101, …), Radau IIA with n_s = 2 stage
-points, FESD step equilibration as nosnoc's defaults, complementarity tolerance 1e-9.
+- **The friction and sliding models** (:data:`.statements.SIGN_MODELS`): x' ∈ f(x) +
+  Σ_j a_j(x)·Sgn(c_j(x)) is one subsystem per sign term with modes f + a_j and f − a_j for
+  the first and ±a_j for the others (the subsystems' fields add, so f enters once), the
+  statement of :mod:`.statements`. There is no control and no cost: nosnoc's OCP with the
+  model's end conditions as terminal equality constraints. A free start value x_i(0) is a
+  global variable p_i of the OCP (nosnoc fixes x(0)): the state is x − p_i·e_i from 0.
+  One control stage, N − 1 finite elements: FESD may move every element boundary.
+- **The two problems of :mod:`qdframe.models.bounded_input`** are optimal-control
+  problems: the bounded input is a control with box bounds, the cost is nosnoc's example
+  cost (∫u² for the block, ∫(v1² + v2²) for the sliding-mode problem) and the end state is a
+  terminal equality constraint; 10 control stages × ⌈(N − 1)/10⌉ finite elements each.
+
+Both: Radau IIA with n_s = 2 stage points, FESD step equilibration as nosnoc's defaults,
+complementarity tolerance 1e-9.
 
 How it is read. nosnoc's trajectory is, on each finite element [t_e, t_e + h_e], the
 collocation polynomial of degree n_s through the element's start value and its stage
 values at τ = (0, c_1, …, c_ns) — by the collocation equations its derivative at the stage
-points is nosnoc's own velocity f(x, u, θ). At N uniform times t_k we take x(t_k) from
-that polynomial and z(t_k) = its slope; at an element boundary, the mean of the slopes of
-the two adjacent elements (see :func:`reconstruct`). Its control, constant on each stage,
-is returned as `inputs` (with the stage ends as `breaks`): the sweep judges the run by the
-true motion that control drives (:mod:`.references`), and shows qdframe's residual checks
-of ξ = (x, z) beside it.
+points is nosnoc's own velocity f(x, u, θ). It is judged at N uniform times and at every
+one of its own points (element boundaries and stage points, :func:`own_times`): x from the
+polynomial, z = its slope; at an element boundary, the mean of the slopes of the two
+adjacent elements (see :func:`reconstruct`). A control, constant on each stage, is returned
+as `inputs` (with the stage ends as `breaks`): the sweep judges such a run by the true
+motion that control drives (:mod:`.references`), and shows qdframe's residual checks of
+ξ = (x, z) beside it.
 """
 
 from __future__ import annotations
@@ -37,9 +48,10 @@ from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
 from ..models.bounded_input import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
+from .statements import SIGN_MODELS, SignForm, sign_form
 
 NOSNOC_STAGES = 10
-PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name)}
+PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name, *SIGN_MODELS)}
 PEERS = ("nosnoc", "solve_bvp")  # the peers' names, as the `direction` of their rows
 INSTALL_HINT = "pip install 'qdframe[peers]' (or pip install nosnoc)"
 
@@ -72,7 +84,8 @@ def nosnoc_available() -> str | None:
 
 
 def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
-    """Solve `model` (one of PEER_MODELS["nosnoc"]) with nosnoc and judge it on N = `nodes`."""
+    """Solve `model` (one of PEER_MODELS["nosnoc"]) with nosnoc and judge it at N = `nodes`
+    uniform times and at its own points."""
     reason = nosnoc_available()
     if reason is not None:
         return PeerRun("failed", reason, 0, float("nan"), float("nan"))
@@ -81,48 +94,70 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
         import casadi as ca
         import nosnoc
 
-    functional = Functional(model, Grid(model.T, nodes), signs="band")  # judged by Filippov's set (band), no selections
     start = time.perf_counter()
-    nos_model, ocp = _problem(model, ca, nosnoc)
+    statement = _problem(model, ca, nosnoc)
     opts = nosnoc.NosnocOpts()
     opts.terminal_time = model.T
-    opts.N_stages = NOSNOC_STAGES
-    opts.N_finite_elements = max(1, math.ceil((nodes - 1) / NOSNOC_STAGES))
+    opts.N_stages = statement.stages
+    opts.N_finite_elements = max(1, math.ceil((nodes - 1) / statement.stages))
     opts.n_s = 2
     opts.comp_tol = 1e-9
     opts.print_level = 0
     chatter = io.StringIO()
     with warnings.catch_warnings(), contextlib.redirect_stdout(chatter):
         warnings.simplefilter("ignore")
-        solver = nosnoc.NosnocSolver(opts, nos_model, ocp)
+        solver = nosnoc.NosnocSolver(opts, statement.model, statement.ocp)
         setup = time.perf_counter() - start
         results = solver.solve()
     wall = time.perf_counter() - start
 
     tau = _collocation_nodes(opts)
-    x, z = reconstruct(results, tau, functional.grid.t)
+    t = own_times(results, tau, Grid(model.T, nodes).t)
+    functional = Functional(model, Grid.from_mesh(t), signs="band")  # judged by Filippov's set, no selections
+    x, z = statement.read(results, tau, t)
     history, elapsed = [], setup
     for step, w in enumerate(results["w_all"][1:], start=1):
         iterate = nosnoc.get_results_from_primal_vector(solver.problem, w)
-        terms = functional.terms(functional.pack(*reconstruct(iterate, tau, functional.grid.t)))
+        terms = functional.terms(functional.pack(*statement.read(iterate, tau, t)))
         elapsed += float(results["cpu_time_nlp"][step - 1] or 0.0)
         history.append({"iteration": step, "objective": terms.objective, "I": terms.I, "time_s": elapsed})
     success = results["status"] == nosnoc.Status.SUCCESS
     ipopt_iterations = int(sum(i for i in results["nlp_iter"] if i is not None))
     steps = sum(1 for i in results["nlp_iter"] if i is not None)
     complementarity = float(solver.problem.comp_res(results["w_sol"], solver.p_val).full()[0][0])
+    outcome = "success" if success else f"IPOPT did not converge ({getattr(results['status'], 'name', results['status'])})"
     message = (
-        f"nosnoc {package_version('nosnoc')}, CasADi {package_version('casadi')}"
-        + f": {'success' if success else 'IPOPT did not converge'} after {steps} homotopy steps "
+        f"nosnoc {package_version('nosnoc')}, CasADi {package_version('casadi')}: {outcome} after {steps} homotopy steps "
         f"({ipopt_iterations} IPOPT iterations), complementarity {complementarity:.1e}, own cost "
-        f"{float(results['cost_val']):.4g}; {NOSNOC_STAGES} stages × {opts.N_finite_elements} finite elements, "
-        f"Radau IIA n_s = 2; setup (CasADi/IPOPT build) {setup:.2f} s"
+        f"{float(results['cost_val']):.4g}; {opts.N_stages} stage{'s' if opts.N_stages > 1 else ''} × "
+        f"{opts.N_finite_elements} finite elements, Radau IIA n_s = 2; setup (CasADi/IPOPT build) {setup:.2f} s"
     )
     if "Warning" in chatter.getvalue():
         message += "; " + chatter.getvalue().strip().splitlines()[-1]
-    controls = np.asarray(results["u_list"], dtype=float).reshape(NOSNOC_STAGES, -1)
+    inputs = None
+    if statement.controls:
+        controls = np.asarray(results["u_list"], dtype=float).reshape(opts.N_stages, -1)
+        inputs = _stagewise(controls, model.T)
     return PeerRun("solved" if success else "failed", message, ipopt_iterations, wall, setup, x, z, history,
-                   inputs=_stagewise(controls, model.T))
+                   t=t, inputs=inputs)
+
+
+@dataclass
+class _Statement:
+    """nosnoc's model and OCP of one problem, its control stages, and how to read x from a result
+    (the start values that are global variables added back to their states)."""
+
+    model: object
+    ocp: object
+    stages: int
+    controls: bool
+    free: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # states whose x(0) is a variable
+
+    def read(self, results: dict, tau: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x, z = reconstruct(results, tau, t)
+        if self.free.size:
+            x[:, self.free] += np.asarray(results["v_global"], dtype=float).reshape(-1)
+        return x, z
 
 
 def _stagewise(controls: np.ndarray, T: float) -> Callable[[float], np.ndarray]:
@@ -201,9 +236,26 @@ def _lagrange(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return basis, slope
 
 
-def _problem(model: InclusionModel, ca, nosnoc):
-    """nosnoc's model and OCP for one of the peer problems."""
+def own_times(results: dict, tau: np.ndarray, uniform: np.ndarray) -> np.ndarray:
+    """The N uniform times and nosnoc's own points (its element boundaries and stage points
+    t_e + c_j·h_e), sorted; points within 1e-12·T of another are one."""
+    steps = np.asarray(results["time_steps"], dtype=float).reshape(-1)
+    bounds = np.concatenate([[0.0], np.cumsum(steps)])
+    stages = (bounds[:-1, None] + tau[None, 1:] * steps[:, None]).ravel()
+    t = np.sort(np.concatenate([uniform, bounds, stages]))
+    t = np.clip(t, 0.0, uniform[-1])
+    keep = np.concatenate([[True], np.diff(t) > 1e-12 * uniform[-1]])
+    t = t[keep]
+    t[-1] = uniform[-1]
+    return t
+
+
+def _problem(model: InclusionModel, ca, nosnoc) -> _Statement:
+    """nosnoc's statement of `model`: a friction or sliding model of :mod:`.statements`, or one
+    of the two bounded-input problems."""
     S = [np.array([[1], [-1]])]  # mode 1 where c > 0, mode 2 where c < 0
+    if model.name in SIGN_MODELS:
+        return _sign_problem(model, sign_form(model.name, model), ca, nosnoc)
     if model.name == CoulombRestToRest.name:
         position, velocity, force = ca.SX.sym("p"), ca.SX.sym("v"), ca.SX.sym("u")
         x = ca.vertcat(position, velocity)
@@ -214,7 +266,7 @@ def _problem(model: InclusionModel, ca, nosnoc):
         end = np.zeros(2)
         end[list(model.end_indices)] = model.end_values
         ocp = nosnoc.NosnocOcp(lbu=-bound, ubu=bound, f_q=force**2, g_terminal=x - end)
-        return nos_model, ocp
+        return _Statement(nos_model, ocp, NOSNOC_STAGES, controls=True)
     if model.name == SlidingModeTerminal.name:
         x1, x2, v1, v2 = (ca.SX.sym(name) for name in ("x1", "x2", "v1", "v2"))
         u1, u2 = ca.SX.sym("u1"), ca.SX.sym("u2")
@@ -228,5 +280,36 @@ def _problem(model: InclusionModel, ca, nosnoc):
         bound = model.input_bound * np.ones(2)
         target = np.asarray(model.end_values)
         ocp = nosnoc.NosnocOcp(lbu=-bound, ubu=bound, f_q=v1**2 + v2**2, g_terminal=x[:2] - target)
-        return nos_model, ocp
+        return _Statement(nos_model, ocp, NOSNOC_STAGES, controls=True)
     raise ValueError(f"nosnoc has no statement of model {model.name!r}; it runs {', '.join(PEER_MODELS['nosnoc'])}")
+
+
+def _sign_problem(model: InclusionModel, form: SignForm, ca, nosnoc) -> _Statement:
+    """x' ∈ f(x) + Σ_j a_j(x)·Sgn(c_j(x)) in Stewart's form: subsystem j has the modes
+    (f + a_j, f − a_j) for j = 0 and (a_j, −a_j) after; no control, no cost; the end conditions
+    terminal constraints; a free x_i(0) a global variable p_i with x_i = state_i + p_i."""
+    if model.periodic:
+        raise ValueError(f"nosnoc's statement of {model.name!r} has no periodic conditions")
+    count = len(model.x0)
+    state = ca.SX.sym("x", count)
+    x0 = np.asarray(model.x0, dtype=float)
+    free = np.flatnonzero(~np.isfinite(x0))
+    shift = ca.SX.sym("x0_free", free.size)
+    x = [state[i] for i in range(count)]
+    for k, i in enumerate(free):
+        x[i] = state[i] + shift[k]
+    base = ca.vertcat(*form.base(x))
+    modes, switches = [], []
+    for j, (a, c) in enumerate(form.terms(x)):
+        lead, a = (base if j == 0 else ca.SX.zeros(count)), ca.vertcat(*a)
+        modes.append(ca.horzcat(lead + a, lead - a))
+        switches.append(c)
+    nos_model = nosnoc.NosnocModel(x=state, F=modes, c=switches, S=[np.array([[1], [-1]])] * len(modes),
+                                   x0=np.where(np.isfinite(x0), x0, 0.0), v_global=shift)
+    end = list(model.end_indices)
+    terminal = ca.vertcat(*[x[i] for i in end]) - np.asarray(model.end_values, dtype=float) if end else ca.SX.zeros(0)
+    unbounded = np.full(free.size, np.inf)
+    guess = model.initial_guess(np.zeros(1))[0][0, free] if free.size else np.zeros(0)
+    ocp = nosnoc.NosnocOcp(g_terminal=terminal, lbv_global=-unbounded, ubv_global=unbounded,
+                           v_global_guess=np.asarray(guess, dtype=float))
+    return _Statement(nos_model, ocp, 1, controls=False, free=free)

@@ -472,6 +472,9 @@ def _run_peer(case: Case, row: dict, history: dict) -> None:
         raise InputError("peer", "nosnoc or solve_bvp", case.peer)
     row.update(status=peer.status, message=peer.message, iterations=peer.iterations,
                wall_time_s=peer.wall_time_s, setup_time_s=peer.setup_time_s)
+    if case.time_limit_s and peer.wall_time_s > case.time_limit_s:  # a peer is not interrupted: judged as if it were
+        row.update(status="time_limit", message=f"time limit {case.time_limit_s:g} s passed ({peer.status} after "
+                                                f"{peer.wall_time_s:.1f} s); {peer.message}")
     if peer.x is None:
         return
     t = peer.t if peer.t is not None else Grid(model.T, case.nodes).t

@@ -18,7 +18,7 @@ from qdframe.cli import main as qdframe_main
 from qdframe.descent import make_direction
 from qdframe.bench import peers as bench_peers
 from qdframe.bench import sweep as bench_sweep
-from qdframe.bench.report import ratios, shifted_geometric_mean, summarize, time_to
+from qdframe.bench.report import common_models, ranking, ratios, shifted_geometric_mean, summarize, time_to
 from qdframe.bench.sweep import Case, claim, read_csv, run_case
 
 TINY = ["run", "--models", "paper-7.1,coulomb-rest-to-rest", "--directions", "gauss-newton,native",
@@ -158,6 +158,23 @@ def test_shifted_geometric_mean_and_rates_by_hand():
     assert (c["claimed"], c["confirmed"], c["false"]) == (2, 1, 1)
 
 
+def test_the_ranking_counts_only_the_models_every_solver_ran():
+    def row(direction, model, time):
+        r = {"direction": direction, "line_search": "ls", "model": model, "knob": "N=11", "nodes": 11,
+             "wall_time_s": time, "status": "solved", "found": True, "error": 1e-9, "claim_tol": 5e-3,
+             "time_limit_s": 20.0}
+        r["claim"] = claim(r)
+        return r
+
+    # b ran m1 only: on m2 a is slow, which a ranking over every run would hold against a alone
+    rows = [row("a", "m1", 1.0), row("a", "m2", 20.0), row("b", "m1", 2.0)]
+    assert common_models(rows) == ["m1"]
+    text = ranking(rows)
+    assert "1 model every solver ran (m1; 2 runs)" in text
+    assert text.index("| a / ls |") < text.index("| b / ls |")  # a is faster on m1
+    assert "No model was run by every solver" in ranking([row("a", "m1", 1.0), row("b", "m2", 1.0)])
+
+
 def test_time_to_an_error_and_the_ratio_to_a_peer_by_hand():
     def row(direction, knob, time, error, model="m"):
         return {"model": model, "direction": direction, "line_search": "x", "knob": knob, "wall_time_s": time,
@@ -226,6 +243,37 @@ def test_nosnoc_rows_have_finite_errors(model):
     assert row["reference_kind"] == "events replay" and row["error"] >= row["end_error"]
 
 
+@pytest.mark.parametrize("model", ["block-stop-stick-bvp", "two-surface-sliding", "slide-after-reaching"])
+def test_nosnoc_states_the_friction_models(model):
+    """Stewart's form of x' ∈ f + Σ a_j·Sgn(c_j): a free start value (the two-point block),
+    two switching functions sharing a term (two surfaces), a reaching phase. A wrong statement
+    (a flipped sign, f counted twice) is an error of order 1 against the closed form."""
+    pytest.importorskip("nosnoc")
+    if bench_peers.nosnoc_available() is not None:
+        pytest.skip(bench_peers.nosnoc_available())
+    row = run_case(Case(model, "nosnoc", "ipopt", 11, max_iter=100, time_limit_s=60.0, peer="nosnoc"))
+    assert row["status"] == "solved", row["message"]
+    assert row["reference_kind"] == "exact" and row["error"] <= 1e-3, row["error"]
+    assert row["nodes"] > 11  # judged at the uniform times and at its own stage points
+    assert "1 stage × 10 finite elements" in row["message"]
+
+
+def test_nosnoc_own_points_are_judged_with_the_uniform_times():
+    results = {"time_steps": np.array([0.25, 0.75])}  # two elements of [0, 1]
+    tau = np.array([0.0, 1.0 / 3.0, 1.0])  # Radau IIA, n_s = 2
+    t = bench_peers.own_times(results, tau, np.linspace(0.0, 1.0, 5))
+    # uniform 0, .25, .5, .75, 1; element ends .25, 1; stage points .25/3, .25 and .25 + .75/3 = .5, 1
+    assert np.allclose(t, [0.0, 0.25 / 3.0, 0.25, 0.5, 0.75, 1.0])
+    assert np.all(np.diff(t) > 0) and t[0] == 0.0 and t[-1] == 1.0
+
+
+def test_a_peer_past_the_time_limit_is_marked(monkeypatch):
+    slow = bench_peers.PeerRun("solved", "done", 3, 100.0, 1.0)
+    monkeypatch.setattr(bench_sweep, "run_nosnoc", lambda model, nodes: slow)
+    row = run_case(Case("block-stop-stick", "nosnoc", "ipopt", 11, 100, 30.0, peer="nosnoc"))
+    assert row["status"] == "time_limit" and "time limit 30 s" in row["message"] and "done" in row["message"]
+
+
 def test_a_missing_peer_is_a_failed_row_with_the_reason(monkeypatch):
     monkeypatch.setattr(bench_peers, "nosnoc_available", lambda: "nosnoc is not usable here; pip install nosnoc")
     row = run_case(Case("coulomb-rest-to-rest", "nosnoc", "ipopt", 11, 100, 60.0, peer="nosnoc"))
@@ -242,8 +290,9 @@ def test_quick_suite_plan_sweeps_each_solvers_knob():
     assert by_solver["qdframe.solve(model)"] == {"default"}  # one row per model: the call a user makes first
     assert by_solver["native / golden"] == {"N=11", "N=41"}
     assert by_solver["solve_bvp"] == {"tol=0.001", "tol=1e-06"}
-    assert {(c.model, c.nodes) for c in sweep.cases if c.peer == "nosnoc"} == {
-        (m, n) for m in ("coulomb-rest-to-rest", "sliding-mode-terminal") for n in (11, 41)
+    assert {(c.model, c.nodes) for c in sweep.cases if c.peer == "nosnoc"} == {  # four models, a stick and a reach
+        (m, n) for m in ("block-stop-stick", "slide-after-reaching", "coulomb-rest-to-rest", "sliding-mode-terminal")
+        for n in (11, 41)
     }
     models = {c.model for c in sweep.cases}
     assert {"paper-7.1", "block-stop-stick", "slide-after-reaching"} <= models  # a stick, a reaching phase

@@ -1,0 +1,110 @@
+"""The peers' statement of each friction and sliding model, written once.
+
+Every model here is, in Filippov's sense,
+
+    x' ∈ f(x) + Σ_j a_j(x)·Sgn(c_j(x)),
+
+one switching function c_j per sign term (a term that appears in several equations is one
+c_j with a vector a_j). A :class:`SignForm` holds f and the pairs (a_j, c_j) as functions of
+the state's components, written with + − × and abs() only, so the same form evaluates on
+NumPy rows (solve_bvp's regularized right side, :mod:`.bvp_peer`) and on CasADi symbols
+(nosnoc's Stewart subsystems, :mod:`.peers`). The physics is the models' docstrings'
+(friction −μ·Sgn(v); qdframe codes it as μ·Sgn(−v), the same set).
+
+=======================  ===========================================================
+block-stop-stick(-bvp)   p' = v,  v' ∈ −3·Sgn(v) + 1
+block-breakaway          p' = v,  v' ∈ −1·Sgn(v) + 1·c,  c' = 1
+slide-on-line,           x1' = x2,  x2' ∈ −2·Sgn(x1 + x2)
+slide-after-reaching
+two-surface-sliding      x1' ∈ 0.25 − Sgn(x1) − 0.5·Sgn(x2),  x2' ∈ −0.25 − Sgn(x2)
+coulomb-block            p' = v,  v' ∈ (−μ·F_N·Sgn(v) + g)/m   (the instance's μ, F_N, g, m)
+sliding-mode             x1' = x2,  x2' ∈ x1 − a·(|x1| + |x2|)·Sgn(a_s·x1 + x2)   (the instance's a, a_s)
+stick-slip-oscillator    p' = v,  v' ∈ −p − 0.1·Sgn(v)
+=======================  ===========================================================
+
+Constants come from :mod:`qdframe.models.friction`, or from the model instance where they
+are its attributes (the qdframe-mechanics plugin's coulomb-block and sliding-mode).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from ..errors import InputError
+from ..models import friction
+
+Components = Sequence  # the state's components: NumPy rows or CasADi scalars
+
+
+@dataclass(frozen=True)
+class SignForm:
+    """x' ∈ f(x) + Σ_j a_j(x)·Sgn(c_j(x)): `base` gives f's components, `terms` the pairs
+    (a_j's components, c_j), both from the state's components."""
+
+    base: Callable[[Components], list]
+    terms: Callable[[Components], list[tuple[list, object]]]
+
+
+def _block_stop_stick(model) -> SignForm:
+    mu, pull = friction.STOP_FRICTION, friction.STOP_PULL
+    return SignForm(lambda x: [x[1], pull], lambda x: [([0.0, -mu], x[1])])
+
+
+def _block_breakaway(model) -> SignForm:
+    mu, ramp = friction.BREAK_FRICTION, friction.BREAK_RAMP
+    return SignForm(lambda x: [x[1], ramp * x[2], 1.0], lambda x: [([0.0, -mu, 0.0], x[1])])
+
+
+def _slide_on_line(model) -> SignForm:
+    gain = friction.LINE_GAIN
+    return SignForm(lambda x: [x[1], 0.0], lambda x: [([0.0, -gain], x[0] + x[1])])
+
+
+def _two_surface(model) -> SignForm:
+    a1, a2, b = friction.TWO_A1, friction.TWO_A2, friction.TWO_B
+    return SignForm(lambda x: [a1, a2], lambda x: [([-1.0, 0.0], x[0]), ([-b, -1.0], x[1])])
+
+
+def _coulomb_block(model) -> SignForm:
+    _need(model, "coulomb-block")
+    mass, mu, normal, pull = model.mass, model.mu, model.normal_force, model.pull
+    return SignForm(lambda x: [x[1], pull / mass], lambda x: [([0.0, -mu * normal / mass], x[1])])
+
+
+def _sliding_mode(model) -> SignForm:
+    _need(model, "sliding-mode")
+    gain, slope = model.gain, model.slope
+    return SignForm(lambda x: [x[1], x[0]],
+                    lambda x: [([0.0, -gain * (abs(x[0]) + abs(x[1]))], slope * x[0] + x[1])])
+
+
+def _stick_slip(model) -> SignForm:
+    mu = friction.OSC_FRICTION
+    return SignForm(lambda x: [x[1], -x[0]], lambda x: [([0.0, -mu], x[1])])
+
+
+def _need(model, name: str) -> None:
+    if model is None:
+        raise InputError("model", f"the {name} model instance (its constants are its attributes)", None)
+
+
+FORMS: dict[str, Callable[[object], SignForm]] = {
+    "block-stop-stick": _block_stop_stick,
+    "block-stop-stick-bvp": _block_stop_stick,
+    "block-breakaway": _block_breakaway,
+    "slide-on-line": _slide_on_line,
+    "slide-after-reaching": _slide_on_line,
+    "two-surface-sliding": _two_surface,
+    "coulomb-block": _coulomb_block,
+    "sliding-mode": _sliding_mode,
+    "stick-slip-oscillator": _stick_slip,
+}
+SIGN_MODELS: tuple[str, ...] = tuple(FORMS)
+
+
+def sign_form(name: str, model=None) -> SignForm:
+    """The :class:`SignForm` of model `name` (`model`: its instance, for constants held there)."""
+    if name not in FORMS:
+        raise InputError("model", f"one of {', '.join(SIGN_MODELS)} (the peers' statements)", name)
+    return FORMS[name](model)
