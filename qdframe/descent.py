@@ -690,10 +690,10 @@ class _Trial:
 # with I ≤ tol but a pointwise check failing, the descent goes on while the worst check's
 # ratio to its tolerance shrinks by at least CERTIFY_SHRINK every CERTIFY_WINDOW iterations;
 # slower than that (a residual left at a few nodes, shrinking a few % per step) it stops
-# `stationary`. The window is long because the ratio falls in steps: on paper-7.3 at
-# N = 100001 it stays within 1 % for 12 iterations at a time (semismooth Newton fixing a
-# few nodes' selections per step) and is certified 55 iterations after I ≤ tol, while it
-# shrinks by less than 2× over some 20-iteration windows.
+# `stationary`. The window is long because the ratio falls in steps: semismooth Newton fixes
+# a few nodes' selections per step, so on a fine grid (paper-7.3) the ratio can stay nearly
+# flat for stretches of iterations before it falls, and a short window would stop a descent
+# that is still on its way to certified.
 CERTIFY_WINDOW = 40
 CERTIFY_SHRINK = 4.0
 # where the descent would stop `stationary`, a solver whose steps are Newton steps (`full_steps`)
@@ -706,9 +706,9 @@ WATCHDOG_GAIN = 1e-2
 NEAR_ITERATE = 1e-6  # a trial that moves ξ by at most this (relative, max-norm) is next to the iterate
 # line-search trial points where the model is NaN/inf that a descent rejects before it stops with the
 # last one's piece, node, t and state: a few are a line search overshooting into a region the model
-# leaves undefined; thousands (gauss-newton on a model NaN past x = 0.9 rejected ~24 per iteration
-# for 500 iterations: 12013) are a descent that keeps heading there. Measured on tests/test_first_hour_api.py's
-# NaN models: a descent blocked next to the NaN region (the error naming the iterate) had rejected 252–375
+# leaves undefined; thousands are a descent that keeps heading there (docs/guide.md, "Reliability").
+# The limit sits above what a descent blocked next to the NaN region rejects before it stops with
+# the error naming the iterate (tests/test_first_hour_api.py's NaN models)
 REJECTED_LIMIT = 500
 START_ROUNDING = 1e-9  # a direction's move of a given x(t_0), relative to max(1, ‖G‖∞), that is rounding
 

@@ -137,7 +137,7 @@ def reach_bound(functional: Functional, xi: np.ndarray, j: int) -> str | None:
 
 
 REACH_SAMPLES = 256  # states drawn in the box around the problem by reach_bound's speed bound, with the iterate's
-SIMULATION_STEPS = 10_000  # reach_bound's simulation: this many steps and twice as many (~0.05 s together)
+SIMULATION_STEPS = 10_000  # reach_bound's simulation: this many steps and twice as many (cheap next to a solve)
 
 
 def _deterministic(functional: Functional) -> bool:

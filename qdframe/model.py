@@ -61,8 +61,8 @@ class MinGroup:
     `values(x, psi)`, optional, returns g alone, the same numbers as `pieces(x, psi)[0]`.
     On a block of k ≥ 2 coordinates the search for ψ* (Remark 5.1) evaluates g some 100–200
     times per node and per new iterate and never uses ∂g/∂x: a `values` that skips the
-    gradients makes that search cheaper and its temporaries smaller (paper-7.2 at N = 1e5:
-    the start's objective, a search from cold, 0.98 → 0.34 s). A functional compares the
+    gradients makes that search cheaper and its temporaries smaller (docs/benchmarks.md
+    has the timing on paper-7.2). A functional compares the
     two before its first search (64 nodes, 32 directions each) and raises :class:`~qdframe.errors.ModelOutputError` where
     they differ (a wrong `values` would find a wrong ψ* and understate the distance to F);
     `qdframe check-model` compares them at random points.

@@ -51,15 +51,14 @@ and one accuracy knob: ε defaults to ``tol``, so asking solve_bvp for a tighter
 also tightens the regularization (a tol far below ε would only resolve the wrong,
 regularized problem more finely). Pass ``epsilon`` to decouple them.
 
-Measured (scipy 1.17.1, max_nodes 1e5): with ε = tol, solve_bvp solves at tol = 1e-2 and
-on five of the nine models at 1e-3, and fails everywhere at 1e-4 and below ("maximum
-number of mesh nodes exceeded"; 3e6 nodes at tol = 1e-6 do not suffice either). The nodes
+Why solve_bvp struggles here (docs/benchmark-results.md has the runs): as ε = tol
+shrinks its mesh outgrows max_nodes ("maximum number of mesh nodes exceeded"). The nodes
 pile up across whole stick and sliding phases: there f has slope a/ε across the layer,
 and Lobatto IIIA collocation (A-stable, not L-stable) leaves that stiff component
 undamped unless h ≲ ε, so v oscillates about the layer instead of settling in it.
-Continuation in ε (each solution the next start) stops at the same place, and a tighter
-tol at fixed ε solves but keeps the O(ε) error: solve_bvp's floor on these problems is
-an error of about 1e-3. A failed run still returns its last x, z and mesh.
+Continuation in ε (each solution the next start) does not get past that, and a tighter
+tol at fixed ε solves but keeps the O(ε) error of the regularization, which bounds its
+accuracy on these problems. A failed run still returns its last x, z and mesh.
 """
 
 from __future__ import annotations

@@ -22,10 +22,9 @@ child process (so that its peak memory is its own):
 The fitted exponent k of s/iter ∝ N^k is the least-squares slope of log(s/iter) against
 log N over the grids measured. The cells run one after another: timings on a shared
 machine are only comparable within one run, which is why the floor is measured in it.
-Single runs spread widely there (gauss-newton on paper-7.1 at N = 1e5: 2.4–3.7 s/iter in
-six runs of one day), so `repeat` measures each cell in that many fresh processes and keeps
-the least s/iter and the least floor (each the least disturbed of its measurements) and
-the largest peak.
+Single runs spread widely there (docs/benchmarks.md), so `repeat` measures each cell in
+that many fresh processes and keeps the least s/iter and the least floor (each the least
+disturbed of its measurements) and the largest peak.
 """
 
 from __future__ import annotations

@@ -9,13 +9,11 @@ an interior-point method and takes no warm start. Tolerances are tight; any stat
 ``Solved`` (e.g. ``AlmostSolved``, ``MaxIterations``) is a failure of every row of the
 chunk: such a row counts as solved only if its polished weights pass the per-row check
 (:mod:`qdframe.directions.qp`); rows that fail are retried in chunks of `retry_chunk_rows`
-with `retry_tolerances` (gap abs, gap rel, feas, ktratio). Measured at 10000 rows: the
-whole stack ends ``AlmostSolved`` on the bench's "collinear" and "origin" batches and on
-the first paper-7.1 batch (on the degenerate ones the interior point stalls near the
-optimum: collinear generators, minimum-norm point 0, no strict complementarity), and the
-polish certifies every row there. (Without it, ~350 origin rows stayed ``AlmostSolved`` and 13 collinear
-rows missed the check after the retry.) Needs
-``pip install 'qdframe[clarabel]'``.
+with `retry_tolerances` (gap abs, gap rel, feas, ktratio). The polish is what certifies
+the degenerate rows: on collinear generators, or where the minimum-norm point is 0 (no
+strict complementarity), the interior point stalls near the optimum and a whole stack can
+end ``AlmostSolved``, which the retry alone does not cure (docs/directions.md gives the
+bench's counts). Needs ``pip install 'qdframe[clarabel]'``.
 """
 
 from __future__ import annotations

@@ -29,9 +29,8 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   with zero coefficients.)
 * **One column per panel.** SuperLU's panels (`PANEL_SIZE` columns updated together, a
   dense work array of panel × rows) pay on wide dense fronts; these systems' columns are
-  short, and on the paper's examples at N = 1e5 a panel of one column factors 1.6–2.3×
-  faster and needs a third of the working memory (7.1: 0.38 → 0.17 s per refactorization,
-  378 → 117 MB above the matrix for a fresh one; 7.3: 2.1 → 1.35 s, 1359 → 548 MB).
+  short, and on the paper's examples a panel of one column factors faster and needs less
+  working memory than SuperLU's default (docs/benchmarks.md has the figures).
 """
 
 from __future__ import annotations

@@ -8,12 +8,12 @@ shape and chunk; later directions only replace the values of A and the bounds
 active-set refinement, with 20 refinement steps), which makes it exact once the active
 set is right; anything but the status ``solved`` is a failure of every row of the chunk,
 and every row is then checked and polished as :mod:`qdframe.directions.qp` describes (OSQP's
-refinement ends a few rows with the active set off by a near-active entry, e.g. 14 of the
-bench's 10000 collinear rows; the exact polish repairs them). Rows that still fail are
-solved again with eps `retry_eps` = 1e-12. (Measured: ADMM alone to eps 1e-10 takes
-~38000 iterations, and ends ``solved inaccurate`` at max_iter 100000 without eps 1e-9,
-when the minimum-norm point is 0 — zero multipliers, no strict complementarity — while
-eps 1e-6 + polish is exact there in ~2400.) Needs
+refinement ends a few rows of the degenerate batches with the active set off by a
+near-active entry; the exact polish repairs them). Rows that still fail are solved again
+with eps `retry_eps` = 1e-12. ADMM is not simply run to a tight eps because it converges
+slowly where the minimum-norm point is 0 (zero multipliers, no strict complementarity):
+there a tight eps takes many times the iterations of a loose eps with polish, or ends
+``solved inaccurate``, while eps 1e-6 + polish is exact. Needs
 ``pip install 'qdframe[osqp]'``.
 """
 

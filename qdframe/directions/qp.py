@@ -174,9 +174,10 @@ def certify(
 
 POLISH_THRESHOLDS = (1e-6, 1e-3, 1e-9)
 """Support rule 1 of :func:`polish`: entry p of group g is in the support when
-λ_gp > τ × max_q λ_gq, for each τ here in turn. Measured on native weights mixed with
-ε × uniform (2000 rows each of 30 shapes/kinds): with 1e-6 alone 8699 rows at ε = 1e-5
-and 1 at 1e-9 were not recovered, with all three 24 and 0."""
+λ_gp > τ × max_q λ_gq, for each τ here in turn. One τ is not enough: an interior point
+leaves residue of a size that varies from row to row on inactive entries, and a genuine
+weight may be small, so 1e-6 alone misses supports that 1e-3 (larger residue) or 1e-9
+(small genuine weights) recover."""
 
 POLISH_NEGATIVE = 1e-9
 """Polished weights must be ≥ −this (and sum to 1 within it) to be checked at all."""

@@ -4,8 +4,9 @@
 QPs are passed to ``qpsolvers.solve_problem`` `rows_per_qp` rows at a time (0: all),
 stacked block-diagonally (:class:`~qdframe.directions.qp.BlockQP`, with λ ≥ 0 as
 variable bounds): dense matrices for a dense-only solver or one-row QPs, CSC otherwise
-(`dense` forces either). By default the stack size is the measured faster one
-(``ROWS_PER_QP``): one QP per row for daqp, 32 rows per sparse QP for proxqp. Each solver gets tight tolerances (``DEFAULT_SETTINGS``, which
+(`dense` forces either). By default the stack size is the one chosen per solver
+(``ROWS_PER_QP``; docs/directions.md): one QP per row for daqp, 32 rows per sparse QP
+for proxqp. Each solver gets tight tolerances (``DEFAULT_SETTINGS``, which
 `settings` overrides); a solution that is not ``found`` or a solver exception is a
 failure of the rows of that QP, and every row is checked and polished as
 :mod:`qdframe.directions.qp` describes; failed rows are retried one QP per row (with ``RETRY_SETTINGS``). Only the solvers in
@@ -40,21 +41,19 @@ RETRY_SETTINGS: dict[str, dict[str, Any]] = {
     "daqp": {"eps_prox": 1e-3, "iter_limit": 100_000},
     "osqp": {"eps_abs": 1e-12, "eps_rel": 1e-12},
 }
-"""Changes for the second attempt on failed rows. daqp: at eps_prox = 3e-2 some rows hit
-its iteration limit ("not found", no weights to polish): of the bench's 10000-row batches
-65 collinear, 37 scale-1e-8 and 52 scale-1e8 rows. Measured on those rows: eps_prox = 1e-2
-(the former retry setting) left 2 + 0 + 2 of them at 100000 iterations; eps_prox = 1e-3
-solved all (it is not the first choice: on other rows it is less accurate, which the polish
-then has to repair). osqp: as the `osqp` direction, eps 1e-6 + polish first, eps 1e-12 for
-the rows that fail."""
+"""Changes for the second attempt on failed rows. daqp: at eps_prox = 3e-2 some rows of the
+degenerate batches (collinear, badly scaled) hit its iteration limit ("not found", no
+weights to polish); eps_prox = 1e-3 with a higher iteration limit solves them, where 1e-2
+did not (docs/directions.md). 1e-3 is not the first choice: on other rows it is less
+accurate, which the polish then has to repair. osqp: as the `osqp` direction, eps 1e-6 +
+polish first, eps 1e-12 for the rows that fail."""
 
 ROWS_PER_QP: dict[str, int] = {"daqp": 1, "proxqp": 32, "scs": 256}
-"""Measured default stack sizes (2000 random rows, G = 2, m = 3, d = 4, one core): daqp
-is fastest one row per QP (2, 4, 8 rows: 1.3×, 2.9×, 8.8× slower); proxqp at 32 rows
-per sparse QP (one dense row: 1.5× slower; 128 rows or more: it hits its iteration limit
-at these tolerances);
-scs at 256 (1 or 32 rows: rows miss the KKT check). Other dense-only solvers: 1; other
-sparse solvers: DEFAULT_STACK."""
+"""Default stack sizes, chosen per solver (docs/directions.md): daqp one row per QP
+(stacking rows only slows it); proxqp 32 rows per sparse QP (one row per QP is slower,
+large stacks hit its iteration limit at these tolerances); scs 256 (small stacks leave
+rows that miss the KKT check). Other dense-only solvers: 1; other sparse solvers:
+DEFAULT_STACK."""
 
 DEFAULT_STACK = 1000
 
@@ -69,7 +68,7 @@ NOT_OFFERED: dict[str, str] = {
     "quadprog": "needs a positive definite Hessian; the min-norm QP's is singular in λ",
     "ecos": "needs a positive definite Hessian; the min-norm QP's is singular in λ",
 }
-"""Why a solver qpsolvers knows is not offered, where measured."""
+"""Why a solver qpsolvers knows is not offered, where it was tried."""
 
 
 def offered_solvers(qpsolvers: Any) -> list[str]:

@@ -180,7 +180,7 @@ class Values:
             return left, np.zeros((0, self.p), dtype=bool)
         held = np.abs(lam[left - 1]) >= 1.0 - SATURATED
         for first, width in self.balls:  # a vector sign keeps its natural map (λ_k = λ_{k−1} at a curved
-            held[:, first : first + width] = False  # stop left the isotropic puck unsolved: 486 iterations)
+            held[:, first : first + width] = False  # stop left the isotropic puck unsolved)
         return left, held
 
     def _natural_map(self, y: np.ndarray, lam: np.ndarray) -> np.ndarray:

@@ -14,8 +14,8 @@ computed by the Filippov simulator (not the paper's rounded numbers).
 :class:`Paper73` is the registered ``paper-7.3``, and :class:`Paper73Reduced` (the
 paper's reduction) derives from it. The set-language form ``paper_sets.Paper73Sets`` has
 the same functional and quasidifferential to rounding but, the solution not being unique,
-the default solve takes another path to another solution (19 iterations instead of 21, at
-the default nodes): registering it would change published results.
+the default solve takes another path to another solution: registering it would change
+published results.
 tests/bench/test_filippov_reference.py and qdframe/bench/filippov.py state the reference
 Filippov system from this module.
 """
@@ -83,8 +83,8 @@ class Paper73(InclusionModel):
     _x0: np.ndarray | None = None  # None: the reaching phase's end, simulated at first use
 
     def __init__(self, T=None, x0=None, end_values=None) -> None:
-        """Without `x0`, x(0) is the end of the reaching phase, simulated (once per process,
-        about 2 s) when x0 is first read, by a solve or a check, not here: loading stays fast."""
+        """Without `x0`, x(0) is the end of the reaching phase, simulated (once per process)
+        when x0 is first read, by a solve or a check, not here: loading stays fast."""
         super().__init__(T, (float("nan"),) * len(self.state_names) if x0 is None else x0, end_values)
         if x0 is None:
             self._x0 = None

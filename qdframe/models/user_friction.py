@@ -3,9 +3,8 @@
 They have no closed form. Each one's reference is its equations written out by hand here
 (not compiled from its sets) in the separable form x' ∈ g(x) + B·Sgn(s(x)) and integrated
 by the event-driven Filippov integrator (:func:`qdframe.filippov.integrate`: DOP853, rtol =
-atol = 1e-12, stick and slide by the equivalent control), to about 1e-11: a second,
-independent reading of the model against which its solves are judged
-(``exact_solution``).
+atol = 1e-12, stick and slide by the equivalent control): a second, independent reading
+of the model against which its solves are judged (``exact_solution``).
 
 =========================  ==================================================================
 model                      what it does
