@@ -175,7 +175,7 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     t = grid.t
 
     def rule(values: np.ndarray) -> Callable[[float], np.ndarray]:
-        return _PointRule(grid, values)
+        return PointRule(grid, values)
 
     controls = rule(result.u) if exact.m else None
     inputs = exact.m or solutions_form_a_set(exact)  # a choice to continue between the points
@@ -237,7 +237,7 @@ def _surface_miss(functional: Functional, reference: np.ndarray) -> float:
     return float(np.max(np.abs(functional.surface.function(reference)[0])))
 
 
-class _PointRule:
+class PointRule:
     """The scheme's own x'(t) of `values` (Scheme.velocity) at one time: the integrator asks
     for one point at a time, so the interval's Lagrange weights are formed from floats."""
 

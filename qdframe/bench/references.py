@@ -29,6 +29,7 @@ Measures (max norms over states):
 
 from __future__ import annotations
 
+import bisect
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -154,16 +155,14 @@ def continuations(t: np.ndarray, velocity=None) -> list[tuple[str, Continuation,
 
     t = np.asarray(t, dtype=float)
     out: list[tuple[str, Continuation, tuple[float, ...]]] = []
-    linear: Continuation = lambda values, times: _linear(t, values, times)  # noqa: E731
+    linear = _LinearRule(t)
     if velocity is not None:
-        out.append(("the caller's rule", lambda values, times: np.stack(
-            [np.atleast_1d(velocity(values)(s)) for s in times]), tuple(t[1:-1])))
+        out.append(("the caller's rule", _CallersRule(velocity), tuple(t[1:-1])))
         return out + [("linear", linear, ())]
     mesh = np.arange(0, t.size, 2)
     if t.size >= 3 and t.size % 2 == 1 and np.allclose(t[1::2], t[:-1:2] + np.diff(t[::2]) / 3.0, rtol=0.0,
                                                        atol=1e-12 * max(1.0, abs(t[-1]))):
-        rule = radau.RadauIIA()
-        out.append(("the Radau IIA rule", lambda values, times: rule.velocity(t, mesh, values, times), tuple(t[2:-1:2])))
+        out.append(("the Radau IIA rule", _SchemeRule(radau.RadauIIA(), t, mesh), tuple(t[2:-1:2])))
     else:
         def backward(values: np.ndarray, times: np.ndarray) -> np.ndarray:
             return values[np.clip(np.searchsorted(t, times, side="left"), 0, t.size - 1)]
@@ -177,13 +176,73 @@ def _linear(t: np.ndarray, values: np.ndarray, times: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(times, t, column) for column in values.T], axis=1)
 
 
+class _LinearRule:
+    """Linear interpolation through the points t as a :data:`Continuation`, with `point`."""
+
+    def __init__(self, t: np.ndarray) -> None:
+        self.t, self.times = t, t.tolist()
+
+    def __call__(self, values: np.ndarray, times: np.ndarray) -> np.ndarray:
+        return _linear(self.t, values, times)
+
+    def point(self, values: np.ndarray) -> Callable[[float], np.ndarray]:
+        values = np.asarray(values, dtype=float).reshape(self.t.size, -1)
+        times = self.times
+
+        def at(s: float) -> np.ndarray:  # np.interp's value, clamped at the ends, in O(log N)
+            k = min(max(bisect.bisect_right(times, s) - 1, 0), len(times) - 2)
+            w = min(max((s - times[k]) / (times[k + 1] - times[k]), 0.0), 1.0)
+            return values[k] + w * (values[k + 1] - values[k])
+
+        return at
+
+
+class _CallersRule:
+    """The caller's `velocity` (values ↦ a function of one time, with `at` for many) as a
+    :data:`Continuation`; `point(values)` gives the function of one time itself."""
+
+    def __init__(self, velocity) -> None:
+        self.velocity = velocity
+
+    def __call__(self, values: np.ndarray, times: np.ndarray) -> np.ndarray:
+        drive = self.velocity(values)
+        if getattr(drive, "at", None) is not None:  # the rule at every time at once
+            return np.asarray(drive.at(np.asarray(times, dtype=float)), dtype=float).reshape(len(times), -1)
+        return np.stack([np.atleast_1d(drive(s)) for s in times])
+
+    def point(self, values: np.ndarray) -> Callable[[float], np.ndarray]:
+        return self.velocity(values)
+
+
+class _SchemeRule:
+    """A scheme's rule for x' on the points t (mesh: the mesh points' indices) as a
+    :data:`Continuation`, with `point(values)` for one time at a time in O(log N)."""
+
+    def __init__(self, scheme, t: np.ndarray, mesh: np.ndarray) -> None:
+        from ..estimates import PointRule
+        from ..grid import Grid
+
+        self.scheme, self.t, self.mesh = scheme, t, mesh
+        self.grid, self.rule = Grid.from_mesh(t[mesh], scheme), PointRule
+
+    def __call__(self, values: np.ndarray, times: np.ndarray) -> np.ndarray:
+        return self.scheme.velocity(self.t, self.mesh, values, times)
+
+    def point(self, values: np.ndarray) -> Callable[[float], np.ndarray]:
+        return self.rule(self.grid, values)
+
+
 class _Drive:
-    """An input u(s) continued by a rule from its values at the points, with the rule's jumps as `breaks`."""
+    """An input u(s) continued by a rule from its values at the points, with the rule's jumps as `breaks`.
+    The integrator asks for one time at a time: a rule with `point` answers in O(log N)."""
 
     def __init__(self, rule: Continuation, values: np.ndarray, breaks: tuple[float, ...]) -> None:
         self.rule, self.values, self.breaks = rule, np.atleast_2d(np.asarray(values, float).T).T, breaks
+        self.one = rule.point(self.values) if hasattr(rule, "point") else None
 
     def __call__(self, s: float) -> np.ndarray:
+        if self.one is not None:
+            return np.atleast_1d(np.asarray(self.one(s), dtype=float))
         return self.rule(self.values, np.array([s]))[0]
 
 

@@ -400,7 +400,8 @@ def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: flo
         f"| sum of run wall times | {total:.1f} s" + (f"; sweep wall time {seconds:.1f} s |" if seconds else " |"),
         f"| budget per run | {settings.get('max_iter', '—')} iterations, time limit {limit} s |",
         f"| claim tolerance | a `solved` promises error ≤ {claim_tol:g} (an accuracy= run: its target) |",
-        f"| qdframe | {meta.get('qdframe_version', '?')}, updated {meta.get('updated_at', '?')} |",
+        f"| qdframe | {meta.get('qdframe_version', '?')}, commit {', then '.join(meta.get('commits') or []) or '—'}"
+        f" (`git log -1 COMMIT`); updated {meta.get('updated_at', '?')} |",
         "",
         "## Definitions",
         "",

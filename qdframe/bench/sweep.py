@@ -38,6 +38,7 @@ import numpy as np
 from ..descent import make_direction, make_line_search, solve
 from ..directions.base import Direction, DirectionSolver
 from ..errors import InputError, QdframeError, UnknownNameError
+from ..estimates import PointRule
 from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
@@ -444,19 +445,22 @@ def scheme_velocity(result) -> Callable[[np.ndarray], Callable[[float], np.ndarr
     scheme = lookup("schemes", result.options["scheme"]).obj()
     t = np.asarray(result.t, float)
     mesh = np.arange(0, t.size, scheme.stages)
+    grid = Grid.from_mesh(t[mesh], scheme)
 
-    def between(values: np.ndarray) -> Callable[[float], np.ndarray]:
-        return Drive(lambda s: scheme.velocity(t, mesh, values, s)[0], tuple(t[mesh[1:-1]]))
+    def between(values: np.ndarray) -> Callable[[float], np.ndarray]:  # one time: O(log N) (the integrator's calls)
+        return Drive(PointRule(grid, values), tuple(t[mesh[1:-1]]), lambda times: scheme.velocity(t, mesh, values, times))
 
     return between
 
 
 @dataclass(frozen=True)
 class Drive:
-    """An input u(t) for a replay and the times where it may jump."""
+    """An input u(t) for a replay, the times where it may jump, and (optional) the same rule
+    at many times at once (`at`: times (M,) -> (M, k))."""
 
     value: Callable[[float], np.ndarray]
     breaks: tuple[float, ...] = ()
+    at: Callable[[np.ndarray], np.ndarray] | None = None
 
     def __call__(self, s: float) -> np.ndarray:
         return self.value(s)
@@ -775,6 +779,9 @@ def run_sweep(
         "qdframe_version": _version(),
         "command": command or store.meta.get("command"),
     })
+    commit = source_commit()
+    store.meta["commits"] = list(dict.fromkeys([*store.meta.get("commits", []), commit])) if commit else \
+        store.meta.get("commits", [])
     store.meta.setdefault("started_at", _now())
     resumed = len(sweep.cases) - len(pending)
     if resumed:
@@ -813,3 +820,19 @@ def _version() -> str:
     from .. import __version__
 
     return __version__
+
+
+def source_commit() -> str | None:
+    """The git commit of the qdframe source that runs (short hash, "+changes" when the package's
+    files differ from it), or None outside a git checkout."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"], capture_output=True,
+                              text=True, timeout=10, check=True).stdout.strip()
+        changed = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--", "qdframe", "plugins"],
+                                 capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return f"{head}+changes" if changed else head or None

@@ -79,6 +79,11 @@ def test_tiny_sweep_writes_csv_json_figures_and_report(tiny):
         assert heading in report, heading
     assert "**paper-7.1** — exact" in report and "**coulomb-rest-to-rest** — events replay" in report
     assert "![work-precision diagrams](work_precision.png)" in report
+    commit = bench_sweep.source_commit()  # the report says which source made it (None outside git)
+    assert json.loads((tiny / "results.json").read_text())["commits"] == ([commit] if commit else [])
+    if commit:
+        assert f"commit {commit}" in report
+    assert "## Results by solver on the same models" in report and "## Each solver on every model it ran" in report
 
 
 def test_results_in_out_need_resume(tiny, capsys):
