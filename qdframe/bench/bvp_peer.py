@@ -17,23 +17,10 @@ surface. A smaller ε also makes f stiffer (slope a/ε) and the layer thinner, s
 mesh has to resolve a boundary layer of width O(ε) in time where the motion enters a
 stick or sliding phase.
 
-The statements (exactly these, written the way the models' docstrings write the
-physics: friction −μ·sat(v/ε); qdframe codes it as μ·Sgn(−v), the same set):
-
-=======================  ================================================================
-block-stop-stick(-bvp)   p' = v,  v' = −3·sat(v/ε) + 1
-block-breakaway          p' = v,  v' = −1·sat(v/ε) + 1·c,  c' = 1
-slide-on-line,           x1' = x2,  x2' = −2·sat((x1 + x2)/ε)
-slide-after-reaching
-two-surface-sliding      x1' = 0.25 − sat(x1/ε) − 0.5·sat(x2/ε),  x2' = −0.25 − sat(x2/ε)
-coulomb-block            p' = v,  v' = (−μ·F_N·sat(v/ε) + g)/m   (μ = 0.5, F_N = 10, g = 3.5, m = 1)
-sliding-mode             x1' = x2,  x2' = x1 − a·(|x1| + |x2|)·sat((2·x1 + x2)/ε)   (a = 2)
-stick-slip-oscillator    p' = v,  v' = −p − 0.1·sat(v/ε)   (p(0) = 5, v(0) = 0, T = 100)
-=======================  ================================================================
-
-Constants come from the models' modules (qdframe.models.friction) or from the model
-instance's attributes (the qdframe-mechanics plugin's coulomb-block and sliding-mode);
-the stick-slip oscillator's friction 0.1 is :data:`STICK_SLIP_FRICTION` here. Boundary
+The statements are the models' forms x' ∈ f(x) + Σ_j a_j(x)·Sgn(c_j(x)) of
+:mod:`.statements` (the ones nosnoc gets too) with every Sgn(c) replaced by sat(c/ε): e.g.
+block-stop-stick p' = v, v' = −3·sat(v/ε) + 1; sliding-mode x2' = x1 − a·(|x1| + |x2|)·
+sat((2·x1 + x2)/ε); stick-slip-oscillator v' = −p − 0.1·sat(v/ε). Boundary
 conditions are the model's: y_i(0) = x0_i where x0_i is given (NaN: free), y_j(T) = xT_j
 for j in ``end_indices``, y_i(T) = y_i(0) for ``periodic``; solve_bvp needs exactly n of
 them. sliding-mode's surface equation 2·x1 + x2 = 0 is not imposed (an ODE statement has
@@ -72,123 +59,40 @@ from scipy.integrate import solve_bvp
 from ..errors import InputError
 from ..models import friction
 from .peers import PeerRun, package_version
+from .statements import SIGN_MODELS, sign_form
 
 STICK_SLIP_NAME = "stick-slip-oscillator"
-STICK_SLIP_FRICTION = 0.1  # p' = v, v' ∈ −p − 0.1·Sgn(v)
+STICK_SLIP_FRICTION = friction.OSC_FRICTION  # p' = v, v' ∈ −p − 0.1·Sgn(v)
 INITIAL_NODES = 11
-
-Rhs = Callable[[np.ndarray, float], np.ndarray]  # y (n, m), ε -> y' (n, m)
-
 
 def sat(s: np.ndarray, epsilon: float) -> np.ndarray:
     """The regularized sign clip(s/ε, −1, 1)."""
     return np.clip(s / epsilon, -1.0, 1.0)
 
 
-# ------------------------------------------------------------------- the statements
-def _block_stop_stick(model) -> Rhs:
-    mu, pull = friction.STOP_FRICTION, friction.STOP_PULL
-
-    def rhs(y, eps):
-        p, v = y
-        return np.vstack([v, -mu * sat(v, eps) + pull])
-
-    return rhs
-
-
-def _block_breakaway(model) -> Rhs:
-    mu, ramp = friction.BREAK_FRICTION, friction.BREAK_RAMP
-
-    def rhs(y, eps):
-        p, v, c = y
-        return np.vstack([v, -mu * sat(v, eps) + ramp * c, np.ones_like(c)])
-
-    return rhs
-
-
-def _slide_on_line(model) -> Rhs:
-    gain = friction.LINE_GAIN
-
-    def rhs(y, eps):
-        x1, x2 = y
-        return np.vstack([x2, -gain * sat(x1 + x2, eps)])
-
-    return rhs
-
-
-def _two_surface(model) -> Rhs:
-    a1, a2, b = friction.TWO_A1, friction.TWO_A2, friction.TWO_B
-
-    def rhs(y, eps):
-        x1, x2 = y
-        return np.vstack([a1 - sat(x1, eps) - b * sat(x2, eps), a2 - sat(x2, eps)])
-
-    return rhs
-
-
-def _coulomb_block(model) -> Rhs:
-    _need(model, "coulomb-block")
-    mass, mu, normal, pull = model.mass, model.mu, model.normal_force, model.pull
-
-    def rhs(y, eps):
-        p, v = y
-        return np.vstack([v, (-mu * normal * sat(v, eps) + pull) / mass])
-
-    return rhs
-
-
-def _sliding_mode(model) -> Rhs:
-    _need(model, "sliding-mode")
-    gain, slope = model.gain, model.slope
-
-    def rhs(y, eps):
-        x1, x2 = y
-        return np.vstack([x2, x1 - gain * (np.abs(x1) + np.abs(x2)) * sat(slope * x1 + x2, eps)])
-
-    return rhs
-
-
-def _stick_slip(model) -> Rhs:
-    mu = STICK_SLIP_FRICTION
-
-    def rhs(y, eps):
-        p, v = y
-        return np.vstack([v, -p - mu * sat(v, eps)])
-
-    return rhs
-
-
-def _need(model, name: str) -> None:
-    if model is None:
-        raise InputError("model", f"the {name} model instance (its constants are its attributes)", None)
-
-
-STATEMENTS: dict[str, Callable[[object], Rhs]] = {
-    "block-stop-stick": _block_stop_stick,
-    "block-stop-stick-bvp": _block_stop_stick,
-    "block-breakaway": _block_breakaway,
-    "slide-on-line": _slide_on_line,
-    "slide-after-reaching": _slide_on_line,
-    "two-surface-sliding": _two_surface,
-    "coulomb-block": _coulomb_block,
-    "sliding-mode": _sliding_mode,
-    STICK_SLIP_NAME: _stick_slip,
-}
-BVP_MODELS: tuple[str, ...] = tuple(STATEMENTS)
+BVP_MODELS: tuple[str, ...] = SIGN_MODELS
 
 
 def statement(name: str, epsilon: float, model=None) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """fun(t, y) of model `name` regularized with ε, vectorized as solve_bvp wants: y (n, m) -> (n, m).
-    `model`: the instance, needed where the constants are its attributes (coulomb-block, sliding-mode)."""
-    if name not in STATEMENTS:
+    """fun(t, y) of model `name` regularized with ε, vectorized as solve_bvp wants: y (n, m) -> (n, m):
+    its :class:`~.statements.SignForm` f(y) + Σ_j a_j(y)·sat(c_j(y)/ε). `model`: the instance, needed
+    where the constants are its attributes (coulomb-block, sliding-mode)."""
+    if name not in BVP_MODELS:
         raise InputError("model", f"one of {', '.join(BVP_MODELS)} (solve_bvp statements)", name)
     if not (np.isfinite(epsilon) and epsilon > 0):
         raise InputError("epsilon", "a positive finite number", epsilon)
-    rhs = STATEMENTS[name](model)
+    form = sign_form(name, model)
     eps = float(epsilon)
 
     def fun(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return rhs(np.asarray(y, dtype=float), eps)
+        y = np.asarray(y, dtype=float)
+        x = list(y)
+        out = [np.broadcast_to(np.asarray(f, dtype=float), y.shape[1:]).copy() for f in form.base(x)]
+        for a, c in form.terms(x):
+            s = sat(c, eps)
+            for i, gain in enumerate(a):
+                out[i] = out[i] + gain * s
+        return np.stack(out)
 
     return fun
 
@@ -245,7 +149,7 @@ def run_solve_bvp(model, tol: float, epsilon: float | None = None, max_nodes: in
     wall_time_s is the whole call, setup_time_s 0, iterations solve_bvp's Newton iterations.
     """
     start = time.perf_counter()
-    if model.name not in STATEMENTS:
+    if model.name not in BVP_MODELS:
         raise InputError("model", f"one of {', '.join(BVP_MODELS)} (solve_bvp statements)", model.name)
     if model.n_controls:
         raise InputError("model", "a model without unknown controls (solve_bvp statements)", model.name)
