@@ -73,7 +73,7 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
     run.add_argument("--suite", choices=sorted(SUITES), default="quick",
                      help="quick (the tests run it, 2–4 minutes): 5 models, gauss-newton to N = 161, accuracy= 1e-3 and the "
                      "default call (1e-6), "
-                     "native to N = 41; standard: the paper's, plugin, friction, peer and T = 100 models, "
+                     "native to N = 41; standard: the paper's, plugin, friction, peer, T = 100 and users' friction models, "
                      "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
                      "and line search")
     run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")

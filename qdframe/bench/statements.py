@@ -6,7 +6,7 @@ Every model here is, in Filippov's sense,
 
 one switching function c_j per sign term (a term that appears in several equations is one
 c_j with a vector a_j). A :class:`SignForm` holds f and the pairs (a_j, c_j) as functions of
-the state's components, written with + − × and abs() only, so the same form evaluates on
+the state's components, written with + − ×, abs() and :func:`sin` only, so the same form evaluates on
 NumPy rows (solve_bvp's regularized right side, :mod:`.bvp_peer`) and on CasADi symbols
 (nosnoc's Stewart subsystems, :mod:`.peers`). The physics is the models' docstrings'
 (friction −μ·Sgn(v); qdframe codes it as μ·Sgn(−v), the same set).
@@ -20,9 +20,13 @@ two-surface-sliding      x1' ∈ 0.25 − Sgn(x1) − 0.5·Sgn(x2),  x2' ∈ −
 coulomb-block            p' = v,  v' ∈ (−μ·F_N·Sgn(v) + g)/m   (the instance's μ, F_N, g, m)
 sliding-mode             x1' = x2,  x2' ∈ x1 − a·(|x1| + |x2|)·Sgn(a_s·x1 + x2)   (the instance's a, a_s)
 stick-slip-oscillator    p' = v,  v' ∈ −p − 0.1·Sgn(v)
+pivot-friction-pendulum  θ' = ω,  ω' ∈ −9.81·sin θ − 0.05·ω − 2·Sgn(ω)
+two-block-chain          p1' = v1,  v1' ∈ −p1 + 3·(p2 − p1) − Sgn(v1),
+                         p2' = v2,  v2' ∈ 1.5 − 3·(p2 − p1) − 0.5·Sgn(v2)
+relay-oscillator         x1' = x2,  x2' ∈ −Sgn(x1)
 =======================  ===========================================================
 
-Constants come from :mod:`qdframe.models.friction`, or from the model instance where they
+Constants come from :mod:`qdframe.models.friction` and :mod:`qdframe.models.user_friction`, or from the model instance where they
 are its attributes (the qdframe-mechanics plugin's coulomb-block and sliding-mode).
 """
 
@@ -31,8 +35,10 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import InputError
-from ..models import friction
+from ..models import friction, user_friction
 
 Components = Sequence  # the state's components: NumPy rows or CasADi scalars
 
@@ -84,6 +90,31 @@ def _stick_slip(model) -> SignForm:
     return SignForm(lambda x: [x[1], -x[0]], lambda x: [([0.0, -mu], x[1])])
 
 
+def _pendulum(model) -> SignForm:
+    g, damping, mu = user_friction.PENDULUM_GRAVITY, user_friction.PENDULUM_DAMPING, user_friction.PENDULUM_FRICTION
+    return SignForm(lambda x: [x[1], -g * sin(x[0]) - damping * x[1]], lambda x: [([0.0, -mu], x[1])])
+
+
+def _two_block_chain(model) -> SignForm:
+    wall, link, pull = user_friction.CHAIN_WALL, user_friction.CHAIN_LINK, user_friction.CHAIN_PULL
+    mu1, mu2 = user_friction.CHAIN_FRICTION
+
+    def base(x):
+        spring = link * (x[2] - x[0])
+        return [x[1], -wall * x[0] + spring, x[3], pull - spring]
+
+    return SignForm(base, lambda x: [([0.0, -mu1, 0.0, 0.0], x[1]), ([0.0, 0.0, 0.0, -mu2], x[3])])
+
+
+def _relay(model) -> SignForm:
+    return SignForm(lambda x: [x[1], 0.0], lambda x: [([0.0, -1.0], x[0])])
+
+
+def sin(value):
+    """sin of a NumPy value or of a CasADi symbol (its own sin)."""
+    return value.sin() if hasattr(value, "sin") else np.sin(value)
+
+
 def _need(model, name: str) -> None:
     if model is None:
         raise InputError("model", f"the {name} model instance (its constants are its attributes)", None)
@@ -99,6 +130,9 @@ FORMS: dict[str, Callable[[object], SignForm]] = {
     "coulomb-block": _coulomb_block,
     "sliding-mode": _sliding_mode,
     "stick-slip-oscillator": _stick_slip,
+    "pivot-friction-pendulum": _pendulum,
+    "two-block-chain": _two_block_chain,
+    "relay-oscillator": _relay,
 }
 SIGN_MODELS: tuple[str, ...] = tuple(FORMS)
 

@@ -65,6 +65,7 @@ FRICTION_MODELS = ("block-stop-stick", "block-stop-stick-bvp", "block-breakaway"
 PLUGIN_MODELS = ("coulomb-block", "sliding-mode", "double-pendulum", "velocity-range", "disturbed-control",
                  "intersecting-balls")
 LONG_HORIZON = ("stick-slip-oscillator",)
+USER_FRICTION = ("pivot-friction-pendulum", "two-block-chain", "relay-oscillator")  # the hard cases users brought
 PEER_PROBLEMS = tuple(BENCH_MODELS)
 # direction preference of the suites: the default, the paper's, then the QP backends
 DIRECTION_PREFERENCE = ("gauss-newton", "native", "qpsolvers:daqp", "clarabel", "osqp", "cvxpy")
@@ -99,7 +100,7 @@ class Suite:
     bvp_tols: tuple[float, ...] = ()
 
 
-STANDARD_MODELS = PAPER_MODELS + PLUGIN_MODELS + FRICTION_MODELS + PEER_PROBLEMS + LONG_HORIZON
+STANDARD_MODELS = PAPER_MODELS + PLUGIN_MODELS + FRICTION_MODELS + PEER_PROBLEMS + LONG_HORIZON + USER_FRICTION
 SUITES = {
     "quick": Suite("quick", ("paper-7.1", "block-stop-stick", "slide-after-reaching") + PEER_PROBLEMS, 2,
                    (11, 41, 161), max_iter=100, time_limit_s=30.0, accuracy=(1e-3,), other_grids=(11, 41),

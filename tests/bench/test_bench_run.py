@@ -248,10 +248,12 @@ def test_nosnoc_rows_have_finite_errors(model):
     assert row["reference_kind"] == "events replay" and row["error"] >= row["end_error"]
 
 
-@pytest.mark.parametrize("model", ["block-stop-stick-bvp", "two-surface-sliding", "slide-after-reaching"])
+@pytest.mark.parametrize("model", ["block-stop-stick-bvp", "two-surface-sliding", "slide-after-reaching",
+                                   "relay-oscillator"])
 def test_nosnoc_states_the_friction_models(model):
     """Stewart's form of x' ∈ f + Σ a_j·Sgn(c_j): a free start value (the two-point block),
-    two switching functions sharing a term (two surfaces), a reaching phase. A wrong statement
+    two switching functions sharing a term (two surfaces), a reaching phase, crossings without
+    sliding (the relay). A wrong statement
     (a flipped sign, f counted twice) is an error of order 1 against the closed form."""
     pytest.importorskip("nosnoc")
     if bench_peers.nosnoc_available() is not None:
@@ -308,7 +310,11 @@ def test_standard_suite_covers_the_issue_list():
     sweep = bench_sweep.plan("standard", peers=True)
     models = set(sweep.settings["models"])
     assert {"paper-7.1", "paper-7.2", "paper-7.3", "coulomb-rest-to-rest", "sliding-mode-terminal",
-            "block-stop-stick", "slide-after-reaching", "two-surface-sliding", "stick-slip-oscillator"} <= models
+            "block-stop-stick", "slide-after-reaching", "two-surface-sliding", "stick-slip-oscillator",
+            "pivot-friction-pendulum", "two-block-chain", "relay-oscillator"} <= models
+    nosnoc = {c.model for c in sweep.cases if c.peer == "nosnoc"}
+    assert nosnoc == set(models) & set(bench_peers.PEER_MODELS["nosnoc"])  # every model it can state
+    assert {"block-stop-stick", "stick-slip-oscillator", "two-block-chain", "coulomb-rest-to-rest"} <= nosnoc
     assert max(c.nodes or 0 for c in sweep.cases) == 100001
 
 
