@@ -349,14 +349,15 @@ def ratio_table(rows: Sequence[dict], targets: Sequence[float] = TARGETS) -> str
 
 def runs_table(rows: Sequence[dict]) -> str:
     lines = [
-        "| model | solver | knob | points | status | claim | iterations | time (s) | error | end error "
-        "| switch error | reference | ref. uncertainty | residual error |",
-        "|:---|:---|:---|---:|:---|:---|---:|---:|---:|---:|---:|:---|---:|---:|",
+        "| model | solver | knob | points | status | claim | iterations | time (s) | of it, estimate (s) "
+        "| error estimate | error | end error | switch error | reference | ref. uncertainty | residual error |",
+        "|:---|:---|:---|---:|:---|:---|---:|---:|---:|---:|---:|---:|---:|:---|---:|---:|",
     ]
     for r in sorted(rows, key=lambda r: (r["model"], solver_label(r), _knob_order(r))):
         lines.append(
             f"| {r['model']} | {solver_label(r)} | {r.get('knob')} | {r.get('nodes') or '—'} | {r['status']} | "
             f"{r.get('claim')} | {r.get('iterations') or 0} | {_number(r.get('wall_time_s'), 2, 'f')} | "
+            f"{_number(r.get('estimate_time_s'), 2, 'f')} | {_number(r.get('error_estimate'))} | "
             f"{_number(r.get('error'))} | {_number(r.get('end_error'))} | {_number(r.get('switch_error'))} | "
             f"{r.get('reference_kind') or '—'} | {_number(r.get('reference_uncertainty'))} | "
             f"{_number(r.get('residual_error'))} |"
