@@ -71,6 +71,7 @@ NOT_RUN = {
     # the quick work-precision suite: 2–4 minutes each; tests/bench/test_bench_run.py runs the
     # first and judges every row, and runs a sweep through the dask executor
     "qdframe bench run --suite quick --peers --out quick": "a 3-minute measurement, run by test_bench_run.py",
+    "qdframe bench run --suite quick --peers --out docs/bench/quick-new": "the same measurement, into the docs",
     "qdframe bench run --suite quick --peers --executor dask --out quick-dask": "the same through dask",
     # every model with an exact solution at two targets, uniform ladders to 81921 points: 3–5
     # minutes; tests/bench/test_bench_accuracy.py runs its code on one model, every step

@@ -33,6 +33,10 @@ def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> N
     bench_directions.add_argument("--json", metavar="FILE", help="write the report as JSON")
     bench_directions.add_argument("--quiet", action="store_true", help="print nothing but errors")
     benches.add_parser("hard", help="the hard-case suite: what each case measured")
+    pages = benches.add_parser("pages", help="rewrite the benchmark tables of README.md and docs/benchmark-results.md "
+                                             "from docs/bench/quick and docs/bench/standard")
+    pages.add_argument("--root", default=".", metavar="DIR", help="the project checkout (default .)")
+    pages.add_argument("--check", action="store_true", help="write nothing; exit 1 when a page differs from its reports")
     bench_friction = benches.add_parser(
         "friction", help="the stick/slide/switch suite: status, iterations, time, strict residual, error and order per N"
     )
@@ -108,7 +112,23 @@ def main_bench(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.bench_command == "run":
         return _run(args, argv)
     return {"directions": _directions, "hard": _hard, "friction": _friction, "accuracy": _accuracy,
-            "scale": _scale}[args.bench_command](args)
+            "scale": _scale, "pages": _pages}[args.bench_command](args)
+
+
+def _pages(args: argparse.Namespace) -> int:
+    from .pages import PAGES, SUITES as REPORTS, update
+
+    root = Path(args.root)
+    missing = [str(root / p) for p in PAGES if not (root / p).is_file()]
+    missing += [str(root / "docs" / "bench" / s / "results.csv") for s in REPORTS
+                if not (root / "docs" / "bench" / s / "results.csv").is_file()]
+    if missing:
+        raise InputError("--root", "a qdframe checkout with README.md, docs/benchmark-results.md and "
+                                   "docs/bench/{quick,standard}/results.csv", f"{root} (missing {missing[0]})")
+    changed = update(root, check=args.check)
+    for path in changed:
+        print(f"{path}: {'differs from its reports' if args.check else 'rewritten'}")
+    return 1 if changed and args.check else 0
 
 
 def _say(quiet: bool = False):
