@@ -60,6 +60,7 @@ class PivotFrictionPendulum(_Referenced):
     reverses, sticks (θ' = ω, ω' ∈ −9.81 sin θ − 0.05 ω − 2 Sgn(ω), T = 6)."""
 
     name = "pivot-friction-pendulum"
+    description = "Pendulum θ' = ω, ω' ∈ −9.81·sin θ − 0.05·ω − 2·Sgn(ω) from rest at θ = 1.2: swings, reverses, sticks"
     state_names = "theta omega"
     default_x0 = (1.2, 0.0)
     default_T = 6.0
@@ -85,6 +86,7 @@ class TwoBlockChain(_Referenced):
     in T = 6, then both stuck."""
 
     name = "two-block-chain"
+    description = "Two blocks on springs in series, Coulomb friction on each, the second pulled: 5 stick/slip changes in T = 6"
     state_names = "p1 v1 p2 v2"
     default_x0 = (0.0, 0.0, 0.0, 0.0)
     default_T = 6.0
@@ -112,6 +114,7 @@ class RelayOscillator(_Referenced):
     √2·(1, 3, 5, 7) in T = 12, no sliding."""
 
     name = "relay-oscillator"
+    description = "Relay oscillator x1' = x2, x2' ∈ −Sgn(x1) from (1, 0): crosses x1 = 0 at √2·(1, 3, 5, 7), no sliding"
     state_names = "x1 x2"
     default_x0 = (1.0, 0.0)
     default_T = 12.0
