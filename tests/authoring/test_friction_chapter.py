@@ -1,7 +1,7 @@
 """Issue 35, item 8: docs/authoring.md's friction chapter — the Coulomb pendulum with Sgn and
 sympy's sin, a start from qdframe.simulate — is the code of examples/coulomb_pendulum.py,
 and its outcomes are the ones the chapter states; its vector sign (issue 38) is the code of
-examples/isotropic_friction.py."""
+examples/isotropic_friction.py; a force in time (a clock state) is examples/time_forcing.py."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 GUIDE = ROOT / "docs" / "authoring.md"
 EXAMPLE = ROOT / "examples" / "coulomb_pendulum.py"
 VECTOR_EXAMPLE = ROOT / "examples" / "isotropic_friction.py"
+CLOCK_EXAMPLE = ROOT / "examples" / "time_forcing.py"
 
 
 @pytest.fixture(scope="module")
@@ -37,10 +38,10 @@ def _chapter() -> str:
 
 def test_the_chapters_code_is_the_examples():
     """The pendulum's two blocks are examples/coulomb_pendulum.py; the vector sign's two (issue
-    38: the puck in the set language, the hand-written BallSwitch) examples/isotropic_friction.py."""
+    38: the puck in the set language, the hand-written BallSwitch) examples/isotropic_friction.py; a force in time (a clock state) is examples/time_forcing.py."""
     blocks = re.findall(r"```python\n(.*?)```", _chapter(), re.S)
-    assert len(blocks) == 4
-    for block, example in zip(blocks, [EXAMPLE, VECTOR_EXAMPLE, VECTOR_EXAMPLE, EXAMPLE]):
+    assert len(blocks) == 5
+    for block, example in zip(blocks, [EXAMPLE, VECTOR_EXAMPLE, VECTOR_EXAMPLE, EXAMPLE, CLOCK_EXAMPLE]):
         code = example.read_text()
         for line in block.splitlines():
             assert line.strip() in code, f"not in examples/{example.name}: {line!r}"
