@@ -28,7 +28,6 @@ from typing import ClassVar
 
 import numpy as np
 
-from .deprecation import moved
 from .errors import InputError
 
 # x (N, n) -> values (N, m, k) and Jacobians (N, m, k, n)
@@ -355,6 +354,3 @@ def _finite_vector(field_name: str, values: object, length: int, free: bool = Fa
         expected = "finite numbers, or nan (free)" if free else "finite numbers (no NaN or inf)"
         raise InputError(field_name, expected, ",".join(map(str, vector)))
     return vector
-
-
-__getattr__ = moved(__name__, "qdframe.authoring.pieces", ("abs_sum",))  # moved in issue 18

@@ -9,14 +9,14 @@
 * `bench run`, work-precision against references:
   :mod:`.sweep` (the cases, one run → one row, executors), :mod:`.references` (a row's
   error against the model's reference), :mod:`.filippov` (an independent event-driven
-  Filippov integrator), :mod:`.replay` (the true motion rebuilt where the solution is not
-  unique), :mod:`.report` (diagrams, times to an error, report.md), :mod:`.peers`
-  (nosnoc) and :mod:`.bvp_peer` (scipy's solve_bvp).
+  Filippov integrator), :mod:`.report` (diagrams, times to an error, report.md),
+  :mod:`.statements` (each friction and sliding model written once for the peers),
+  :mod:`.peers` (nosnoc) and :mod:`.bvp_peer` (scipy's solve_bvp);
+* :mod:`.pages` — `bench pages`: README's and docs/benchmark-results.md's tables from the reports.
 
 The models the benchmarks pose live with every other built-in model, in :mod:`qdframe.models`.
 """
 
-from ..deprecation import moved
 from .directions import bench_directions, format_table, write_json
 from .report import shifted_geometric_mean, summarize, write_report
 from .sweep import SUITES, Case, Plan, ResultStore, execute, plan, run_case, run_sweep
@@ -37,7 +37,3 @@ __all__ = [
     "write_json",
     "write_report",
 ]
-
-# the rest of the old module qdframe.bench (now .directions): forwarded, with a warning
-__getattr__ = moved(__name__, "qdframe.bench.directions", ("BenchRow", "Instance", "PAPER_MODELS", "degenerate_instances",
-                                                           "installed_directions", "paper_instances"))
