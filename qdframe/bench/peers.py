@@ -52,6 +52,7 @@ from .statements import SIGN_MODELS, SignForm, sign_form
 
 NOSNOC_STAGES = 10
 PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name, *SIGN_MODELS)}
+TWO_MODES = np.array([[1], [-1]])  # Stewart's S of one switching function: mode 1 where c > 0, mode 2 where c < 0
 PEERS = ("nosnoc", "solve_bvp")  # the peers' names, as the `direction` of their rows
 INSTALL_HINT = "pip install 'qdframe[peers]' (or pip install nosnoc)"
 
@@ -253,7 +254,7 @@ def own_times(results: dict, tau: np.ndarray, uniform: np.ndarray) -> np.ndarray
 def _problem(model: InclusionModel, ca, nosnoc) -> _Statement:
     """nosnoc's statement of `model`: a friction or sliding model of :mod:`.statements`, or one
     of the two bounded-input problems."""
-    S = [np.array([[1], [-1]])]  # mode 1 where c > 0, mode 2 where c < 0
+    S = [TWO_MODES]
     if model.name in SIGN_MODELS:
         return _sign_problem(model, sign_form(model.name, model), ca, nosnoc)
     if model.name == CoulombRestToRest.name:
@@ -304,7 +305,7 @@ def _sign_problem(model: InclusionModel, form: SignForm, ca, nosnoc) -> _Stateme
         lead, a = (base if j == 0 else ca.SX.zeros(count)), ca.vertcat(*a)
         modes.append(ca.horzcat(lead + a, lead - a))
         switches.append(c)
-    nos_model = nosnoc.NosnocModel(x=state, F=modes, c=switches, S=[np.array([[1], [-1]])] * len(modes),
+    nos_model = nosnoc.NosnocModel(x=state, F=modes, c=switches, S=[TWO_MODES] * len(modes),
                                    x0=np.where(np.isfinite(x0), x0, 0.0), v_global=shift)
     end = list(model.end_indices)
     terminal = ca.vertcat(*[x[i] for i in end]) - np.asarray(model.end_values, dtype=float) if end else ca.SX.zeros(0)

@@ -75,14 +75,14 @@ def judge(
     u: np.ndarray | None = None,
     switch_times: Sequence[float] | None = None,
     inputs: Callable[[float], np.ndarray] | None = None,
-    velocity: Callable[[np.ndarray], Callable[[float], np.ndarray]] | None = None,
+    velocity: Continuation | None = None,
     selections: np.ndarray | None = None,
 ) -> Judgement:
     """Judge the trajectory (t, x, z, u) of `model`. For an events replay, `inputs` is the
     peer's own input u(t); else the input is recovered at the points t from the trajectory
     (:data:`INPUTS`, from the trajectory's own `selections` λ (N, p) where it has them) and
-    continued between them by `velocity` (values at t ↦ a function of time: the scheme's own
-    rule for x', :meth:`~qdframe.schemes.base.Scheme.velocity`; default piecewise linear).
+    continued between them by `velocity` (a :data:`Continuation`: the scheme's own rule for
+    x', :class:`SchemeRule`; default piecewise linear).
     Where the trajectory leaves its input undetermined at some points (a recoverer returns
     several admissible candidates), each is replayed and the nearest true motion is the
     reference: any admissible input whose motion is that near proves the distance."""
@@ -138,7 +138,7 @@ def judge(
 Continuation = Callable[[np.ndarray, np.ndarray], np.ndarray]  # (values at t (N, k), times (M,)) -> (M, k)
 
 
-def continuations(t: np.ndarray, velocity=None) -> list[tuple[str, Continuation, tuple[float, ...]]]:
+def continuations(t: np.ndarray, velocity: Continuation | None = None) -> list[tuple[str, Continuation, tuple[float, ...]]]:
     """The ways to continue a trajectory's velocities (and inputs) between its points t, each a
     true motion's input when replayed; the judge takes the one whose motion is nearest (every one
     is a genuine motion of the inclusion, so the nearest bounds the distance to the solution set):
@@ -149,7 +149,8 @@ def continuations(t: np.ndarray, velocity=None) -> list[tuple[str, Continuation,
     - "the implicit Euler rule": constant on (t_{k−1}, t_k] at the value of t_k, jumps at every point;
     - "linear" interpolation through the points.
 
-    `velocity` (values ↦ function of time) replaces the first two: the caller's own rule.
+    `velocity` (a :data:`Continuation`, e.g. :class:`SchemeRule`) replaces the first two: the
+    caller's own rule.
     """
     from ..schemes import radau
 
@@ -157,12 +158,12 @@ def continuations(t: np.ndarray, velocity=None) -> list[tuple[str, Continuation,
     out: list[tuple[str, Continuation, tuple[float, ...]]] = []
     linear = _LinearRule(t)
     if velocity is not None:
-        out.append(("the caller's rule", _CallersRule(velocity), tuple(t[1:-1])))
+        out.append(("the caller's rule", velocity, tuple(t[1:-1])))
         return out + [("linear", linear, ())]
     mesh = np.arange(0, t.size, 2)
     if t.size >= 3 and t.size % 2 == 1 and np.allclose(t[1::2], t[:-1:2] + np.diff(t[::2]) / 3.0, rtol=0.0,
                                                        atol=1e-12 * max(1.0, abs(t[-1]))):
-        out.append(("the Radau IIA rule", _SchemeRule(radau.RadauIIA(), t, mesh), tuple(t[2:-1:2])))
+        out.append(("the Radau IIA rule", SchemeRule(radau.RadauIIA(), t, mesh), tuple(t[2:-1:2])))
     else:
         def backward(values: np.ndarray, times: np.ndarray) -> np.ndarray:
             return values[np.clip(np.searchsorted(t, times, side="left"), 0, t.size - 1)]
@@ -197,24 +198,7 @@ class _LinearRule:
         return at
 
 
-class _CallersRule:
-    """The caller's `velocity` (values ↦ a function of one time, with `at` for many) as a
-    :data:`Continuation`; `point(values)` gives the function of one time itself."""
-
-    def __init__(self, velocity) -> None:
-        self.velocity = velocity
-
-    def __call__(self, values: np.ndarray, times: np.ndarray) -> np.ndarray:
-        drive = self.velocity(values)
-        if getattr(drive, "at", None) is not None:  # the rule at every time at once
-            return np.asarray(drive.at(np.asarray(times, dtype=float)), dtype=float).reshape(len(times), -1)
-        return np.stack([np.atleast_1d(drive(s)) for s in times])
-
-    def point(self, values: np.ndarray) -> Callable[[float], np.ndarray]:
-        return self.velocity(values)
-
-
-class _SchemeRule:
+class SchemeRule:
     """A scheme's rule for x' on the points t (mesh: the mesh points' indices) as a
     :data:`Continuation`, with `point(values)` for one time at a time in O(log N)."""
 

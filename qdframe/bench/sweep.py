@@ -38,7 +38,6 @@ import numpy as np
 from ..descent import make_direction, make_line_search, solve
 from ..directions.base import Direction, DirectionSolver
 from ..errors import InputError, QdframeError, UnknownNameError
-from ..estimates import PointRule
 from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
@@ -47,7 +46,7 @@ from ..progress import bar
 from ..registry import available, lookup
 from .bvp_peer import BVP_MODELS, run_solve_bvp
 from .peers import PEER_MODELS, run_nosnoc
-from .references import judge
+from .references import SchemeRule, judge
 
 FORMAT = "qdframe-bench-run/3"
 KEY_FIELDS = ("model", "direction", "line_search", "knob")
@@ -439,32 +438,12 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
            velocity=scheme_velocity(result), selections=result.selections)
 
 
-def scheme_velocity(result) -> Callable[[np.ndarray], Callable[[float], np.ndarray]]:
-    """values at a result's points ↦ the function of time its scheme's rule makes of them
-    (:meth:`~qdframe.schemes.base.Scheme.velocity`), for replaying its input; it may jump at
-    the mesh points, which it names as `breaks` (the integrator restarts there)."""
+def scheme_velocity(result) -> SchemeRule:
+    """The rule a result's scheme makes of values at its points (:meth:`~qdframe.schemes.base.Scheme.velocity`),
+    for replaying its input: it may jump at the mesh points."""
     scheme = lookup("schemes", result.options["scheme"]).obj()
     t = np.asarray(result.t, float)
-    mesh = np.arange(0, t.size, scheme.stages)
-    grid = Grid.from_mesh(t[mesh], scheme)
-
-    def between(values: np.ndarray) -> Callable[[float], np.ndarray]:  # one time: O(log N) (the integrator's calls)
-        return Drive(PointRule(grid, values), tuple(t[mesh[1:-1]]), lambda times: scheme.velocity(t, mesh, values, times))
-
-    return between
-
-
-@dataclass(frozen=True)
-class Drive:
-    """An input u(t) for a replay, the times where it may jump, and (optional) the same rule
-    at many times at once (`at`: times (M,) -> (M, k))."""
-
-    value: Callable[[float], np.ndarray]
-    breaks: tuple[float, ...] = ()
-    at: Callable[[np.ndarray], np.ndarray] | None = None
-
-    def __call__(self, s: float) -> np.ndarray:
-        return self.value(s)
+    return SchemeRule(scheme, t, np.arange(0, t.size, scheme.stages))
 
 
 def _run_peer(case: Case, row: dict, history: dict) -> None:
