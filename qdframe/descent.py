@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from . import adaptive, certify, estimates, switches
+from . import adaptive, certify, estimates, switches, unknowns
 from .directions.base import DirectionSolver
 from .diagnosis import unmet_conditions
 from .errors import BackendError, InputError, ModelOutputError
@@ -93,6 +94,8 @@ def solve(
     max_nodes: int = 100_001,
     certificate: str | None = None,
     simulate_start: bool = True,
+    free_T: bool | None = None,
+    parameters: Mapping[str, float] | None = None,
 ) -> SolveResult:
     """Find a trajectory of `model` by quasidifferential descent.
 
@@ -149,6 +152,18 @@ def solve(
     clock = time.perf_counter()
     if isinstance(model, str):
         model = load_model(model)
+    if free_T is not None or parameters:  # a copy with T free or fixed, or other guesses of p
+        model = unknowns.restated(model, free_T, parameters)
+    if model.has_unknowns:  # T or p found with x: the model on s = t/T with constant states
+        wrapper = unknowns.Unknowns(model)
+        given = dict(locals())
+        arguments = {name: given[name] for name in inspect.signature(solve).parameters
+                     if name not in ("model", "free_T", "parameters")}
+        if mesh is not None:
+            arguments["mesh"] = np.asarray(mesh, dtype=float) / (model.T if model.free_T else 1.0)
+        result = unknowns.unwrap(wrapper, solve(wrapper, **arguments))
+        result.wall_time_s = time.perf_counter() - clock
+        return result
     if accuracy is not None and not (isinstance(accuracy, (int, float)) and np.isfinite(accuracy) and accuracy > 0):
         raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
     if isinstance(max_nodes, bool) or not isinstance(max_nodes, (int, np.integer)) or max_nodes < 3:

@@ -22,7 +22,7 @@ of y = (x, u), an array of shape (N, n + m), and its gradients have n + m column
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -222,6 +222,16 @@ class InclusionModel(ABC):
     # robust for sticking, sliding and switching; smooth models may prefer "radau-iia" or
     # "trapezoid" (the paper's, second order)
     default_scheme: ClassVar[str] = "implicit-euler"
+    # free end time (:mod:`qdframe.unknowns`): T is found with x, starting from `T`, kept in
+    # `T_bounds` (lo, hi), 0 ≤ lo < hi ≤ inf
+    free_T: ClassVar[bool] = False
+    T_bounds: ClassVar[tuple[float, float]] = (0.0, np.inf)
+    # unknown constant parameters p (:mod:`qdframe.unknowns`): found with x; the pieces then
+    # take y = (x, p, u), n + q + m columns; `default_parameters` are the starting guesses and
+    # `parameter_bounds` {name: (lo, hi)} optional open bounds
+    parameter_names: ClassVar[tuple[str, ...]] = ()
+    default_parameters: ClassVar[tuple[float, ...]] = ()
+    parameter_bounds: ClassVar[dict[str, tuple[float, float]]] = {}
 
     def __init__(
         self,
@@ -229,14 +239,27 @@ class InclusionModel(ABC):
         x0: Sequence[float] | None = None,
         end_values: Sequence[float] | None = None,
         periodic: Sequence[int | str] | None = None,
+        *,
+        free_T: bool | None = None,
+        parameters: Mapping[str, float] | Sequence[float] | None = None,
     ) -> None:
         """`x0`: n values, NaN where x_i(0) is free. `end_values`: the values of the model's
         J in order, or n values with NaN where x_i(T) is free (this chooses J). `periodic`:
-        the coordinates (indices or state names) with x_i(T) = x_i(0)."""
+        the coordinates (indices or state names) with x_i(T) = x_i(0). `free_T`: T unknown,
+        `T` its starting guess (None: the class's `free_T`). `parameters`: starting guesses
+        of the unknown parameters, {name: value} or q values in `parameter_names` order."""
         n = len(self.state_names)
         if n == 0:
             raise InputError(f"{type(self).__name__}.state_names", "a non-empty tuple of names")
         self.T = _positive_float("T", self.default_T if T is None else T)
+        if free_T is not None:
+            if not isinstance(free_T, (bool, np.bool_)):
+                raise InputError("free_T", "True or False", free_T)
+            self.free_T = bool(free_T)
+        self.T_bounds = _bounds("T_bounds", self.T_bounds, self.T)
+        if self.free_T and self.T_bounds[0] < 0:
+            raise InputError("T_bounds", "(lo, hi) with 0 ≤ lo < T < hi", self.T_bounds)
+        self.parameters = self._parameter_guesses(parameters)
         self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n, free=True)
         if end_values is not None and len(end_values) == n != len(self.end_indices):
             chosen = np.asarray(end_values, dtype=float)
@@ -255,6 +278,38 @@ class InclusionModel(ABC):
             if not (isinstance(i, (int, np.integer)) and 0 <= i < n) or i in self.end_indices:
                 raise InputError("periodic", f"state indices in 0..{n - 1} not in the end coordinates J", i)
         self._check_blocks()
+
+    def _parameter_guesses(self, parameters: Mapping[str, float] | Sequence[float] | None) -> np.ndarray:
+        """The starting guesses of the parameters, checked against their names and bounds."""
+        names = tuple(self.parameter_names)
+        if len(set(names)) != len(names) or set(names) & set(self.state_names):
+            raise InputError(f"{type(self).__name__}.parameter_names", "distinct names, none a state's", names)
+        if isinstance(parameters, Mapping):
+            unknown = [key for key in parameters if key not in names]
+            if unknown:
+                raise InputError("parameters", f"names among the model's parameters ({', '.join(names) or 'none'})",
+                                 ", ".join(map(str, unknown)))
+            guesses = _finite_vector(f"{type(self).__name__}.default_parameters", self.default_parameters, len(names))
+            guesses = np.array([float(parameters.get(name, value)) for name, value in zip(names, guesses)])
+        else:
+            values = self.default_parameters if parameters is None else parameters
+            guesses = _finite_vector("parameters", values, len(names))
+        unknown = [key for key in self.parameter_bounds if key not in names]
+        if unknown:
+            raise InputError(f"{type(self).__name__}.parameter_bounds", f"keys among parameter_names ({', '.join(names)})",
+                             ", ".join(map(str, unknown)))
+        for name, guess in zip(names, guesses):
+            _bounds(f"parameter_bounds[{name!r}]", self.parameter_bounds.get(name, (-np.inf, np.inf)), guess)
+        return guesses
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.parameter_names)
+
+    @property
+    def has_unknowns(self) -> bool:
+        """Whether T or parameters are found with x (:mod:`qdframe.unknowns` solves such a model)."""
+        return bool(self.free_T or self.parameter_names)
 
     def _index(self, field_name: str, coordinate: int | str) -> int:
         """A state index from an index or a state name."""
@@ -341,6 +396,17 @@ def _positive_float(field_name: str, value: object) -> float:
     if not np.isfinite(number) or number <= 0:
         raise InputError(field_name, "a positive finite number", value)
     return number
+
+
+def _bounds(field_name: str, bounds: object, guess: float) -> tuple[float, float]:
+    """(lo, hi) with lo < guess < hi (infinite ends allowed)."""
+    try:
+        lo, hi = (float(v) for v in bounds)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise InputError(field_name, "a pair (lo, hi) of numbers (±inf for none)", bounds) from None
+    if np.isnan(lo) or np.isnan(hi) or not lo < guess < hi:
+        raise InputError(field_name, f"(lo, hi) with lo < {guess:g} < hi (the starting guess strictly inside)", bounds)
+    return lo, hi
 
 
 def _finite_vector(field_name: str, values: object, length: int, free: bool = False) -> np.ndarray:

@@ -71,6 +71,7 @@ class SolveResult:
     certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.estimates)
     accuracy: float | None = None  # the target: solved promises error_estimate ≤ accuracy·max(1, max|x|)
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
+    parameters: dict[str, float] = field(default_factory=dict)  # the unknown parameters found (qdframe.unknowns)
 
     @property
     def solved(self) -> bool:
@@ -95,13 +96,16 @@ class SolveResult:
         """A few lines for a notebook: how it ended, on what grid, I and the residuals."""
         lines = [
             f"SolveResult {self.model}: {self.status}, {self.iterations} iterations, {self.nodes} nodes "
-            f"(T = {self.T:g}), {self.direction} / {self.line_search}, {self.wall_time_s:.3g} s",
+            f"(T = {self.T:.10g}{', found' if self.options.get('free_T') else ''}), {self.direction} / "
+            f"{self.line_search}, {self.wall_time_s:.3g} s",
             f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.3e}" if self.cost is not None else ""),
             "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
         ]
         if self.error_estimate is not None:
             lines.append(f"  error estimate {self.error_estimate:.2e} ({self.certificate})"
                          + (f", switch times {', '.join(f'{t:.6g}' for t in self.switch_times)}" if len(self.switch_times) else ""))
+        if self.parameters:
+            lines.append("  parameters: " + _named(self.parameters))
         if self.solution_error is not None:
             lines.append(f"  error vs the known solution {self.solution_error:.2e}")
         if self.message:
@@ -129,13 +133,16 @@ class SolveResult:
     def to_dataframe(self) -> "pandas.DataFrame":
         """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
         per state (the model's state names), z as x1' …, then u and λ where the model has them
-        named as the model names them). Needs pandas: ``pip install 'qdframe[frames]'``."""
+        named as the model names them), with attrs model, status, T and ``parameter_<name>``. Needs pandas: ``pip install 'qdframe[frames]'``."""
         pd = _optional("pandas", "to_dataframe")
         names = self._columns()
         blocks = [self.x, self.z] + [part for part in (self.u, self.selections) if part is not None]
         labels = names["x"] + names["z"] + names["u"] + names["selections"]
         index = pd.Index(np.asarray(self.t, dtype=float), name="t")
-        return pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
+        frame = pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
+        frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),
+                            **{f"parameter_{name}": float(value) for name, value in self.parameters.items()}})
+        return frame
 
     def to_xarray(self) -> "xarray.Dataset":
         """The trajectory as an xarray Dataset: coordinate t, data variables x and z (t, state)
@@ -158,7 +165,8 @@ class SolveResult:
         attrs: dict[str, Any] = {"model": self.model, "direction": self.direction, "line_search": self.line_search,
                                  "status": self.status, "message": self.message, "nodes": int(self.nodes),
                                  "T": float(self.T), "iterations": int(self.iterations), "I": float(self.I),
-                                 "objective": float(self.objective)}
+                                 "objective": float(self.objective), "free_T": int(bool(self.options.get("free_T")))}
+        attrs.update({f"parameter_{name}": float(value) for name, value in self.parameters.items()})
         attrs.update({f"residual_{name}": value for name, value in self.residuals().items()})
         if self.solution_error is not None:
             attrs["solution_error"] = float(self.solution_error)
@@ -185,7 +193,8 @@ class SolveResult:
             ("model", self.model),
             ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
             ("direction / line search", f"{self.direction} / {self.line_search}"),
-            ("nodes, T", f"{self.nodes}, {self.T:g}" + _grids(self.options.get("grids", []), self.nodes)
+            ("nodes, T", f"{self.nodes}, {self.T:.10g}" + (" (found)" if self.options.get("free_T") else "")
+             + _grids(self.options.get("grids", []), self.nodes)
              + ("  (nonuniform mesh)" if self.options.get("uniform") is False else "")),
             ("scheme, signs", f"{self.options.get('scheme', '—')}, {self.options.get('signs', '—')}"),
             ("iterations", str(self.iterations)),
@@ -195,6 +204,8 @@ class SolveResult:
         ]
         if self.cost is not None:
             rows.insert(7, ("cost", f"{self.cost:.3e}"))
+        if self.parameters:
+            rows.insert(4, ("parameters", _named(self.parameters)))
         labels = {"boundary": "boundary error", "inclusion": "inclusion residual", "selection": "selection residual",
                   "consistency": "consistency error", "surface": "surface error"}
         for name, value in self.residuals().items():
@@ -231,6 +242,10 @@ def _optional(module: str, method: str) -> Any:
         return importlib.import_module(module)
     except ImportError:
         raise ImportError(f"SolveResult.{method}() needs {module}: pip install 'qdframe[frames]'") from None
+
+
+def _named(values: dict[str, float]) -> str:
+    return ", ".join(f"{name} = {value:.10g}" for name, value in values.items())
 
 
 def _grids(grids: list[int], nodes: int) -> str:

@@ -31,8 +31,11 @@ class SetModel(InclusionModel):
       ``default_end_values``);
     - ``penalty``: λ of the objective ∫cost + λ·I when there is a running cost.
 
+    - ``parameter_names`` may be one string, ``"mu"``: unknown constants found with x
+      (:mod:`qdframe.unknowns`), with ``default_parameters`` their starting guesses.
+
     Implement :meth:`sets`; optionally :meth:`surface_equations` and :meth:`running_cost`.
-    Each receives the states and then the controls as SymPy symbols, in order. The sets
+    Each receives the states, then the parameters, then the controls as SymPy symbols, in order. The sets
     are compiled once per class (on first use), so they may use class attributes
     (parameters) but not per-instance state.
     """
@@ -46,6 +49,7 @@ class SetModel(InclusionModel):
         super().__init_subclass__(**kwargs)
         cls.state_names = _names(cls.state_names)
         cls.control_names = _names(cls.control_names)
+        cls.parameter_names = _names(cls.parameter_names)
         if "default_xT" in cls.__dict__ and cls.default_xT is not None:
             names = list(cls.state_names)
             missing = [k for k in cls.default_xT if k not in names]
@@ -74,15 +78,15 @@ class SetModel(InclusionModel):
     # -- the InclusionModel interface
     @classmethod
     def symbols(cls) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
-        """The states and controls as real SymPy symbols."""
-        return (tuple(sp.Symbol(n, real=True) for n in cls.state_names),
+        """The states (then the parameters, if any) and the controls as real SymPy symbols."""
+        return (tuple(sp.Symbol(n, real=True) for n in (*cls.state_names, *cls.parameter_names)),
                 tuple(sp.Symbol(n, real=True) for n in cls.control_names))
 
     def compiled(self) -> Compiled:
         cls = type(self)
         cached = cls.__dict__.get("_compiled_sets")
         if cached is None:
-            states, controls = cls.symbols()
+            states, controls = cls.symbols()  # the parameters are constant states here: p' = 0
             args = states + controls
             with plugin_code(self, "sets()"):
                 try:
@@ -98,13 +102,16 @@ class SetModel(InclusionModel):
                 surface = self.surface_equations(*args)
             with plugin_code(self, "running_cost()"):
                 cost = self.running_cost(*args)
+            if cls.parameter_names:
+                sets = {**sets, **{symbol: 0 for symbol in states[len(cls.state_names):]}}
             cached = compile_sets(sets, states, controls, surface=surface, cost=cost,
                                   weight=float(cls.penalty), model=cls.name or cls.__name__)
             cls._compiled_sets = cached  # type: ignore[attr-defined]
         return cached
 
     def blocks(self) -> tuple[SetBlock, ...]:
-        return self.compiled().blocks
+        """The states' blocks (the parameters' p' = 0 are :mod:`qdframe.unknowns`' to add)."""
+        return tuple(block for block in self.compiled().blocks if max(block.coords) < self.n_states)
 
     def surface(self) -> Surface | None:
         return self.compiled().surface

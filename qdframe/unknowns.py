@@ -1,0 +1,359 @@
+"""Free end time and unknown parameters: the problem restated with constant states.
+
+A model whose end time T is free (``free_T``) or which declares unknown parameters p
+(``parameter_names``) is solved as an ordinary model, :class:`Unknowns`, on the scaled
+time s = t/T ∈ [0, 1] (when T is free) with the unknowns as states that do not move:
+
+    X(s) = x(s·T),   X' ∈ T·F(X, p, u),   σ_p' = 0,   σ_T' = 0,
+
+T = b_T(σ_T) and p_i = b_i(σ_i), each b a smooth increasing map from R onto the open
+interval (lo, hi) of its bounds: the identity without bounds, lo + e^σ or hi − e^σ with
+one, lo + (hi − lo)/(1 + e^−σ) with both; T's bounds are (0, ∞) unless the model says
+otherwise, so a periodic orbit cannot collapse onto T = 0. For T > 0 the support function
+of T·F is T·c(F, ψ): every max-group, min-group and sign amplitude of the model is scaled
+by T, a switch s(y) is not (Sgn(s) does not change), the cost integrand is scaled by T
+(∫ c dt = ∫ T·c ds) and the surface is not. The σ's start and end free; the boundary,
+periodic and surface conditions of the model are those of X. So T and p enter the
+functional (paper (3.13)–(3.17)) through F alone, and every scheme, direction, start,
+error estimate and certificate applies unchanged.
+
+:func:`unwrap` maps the result back: t = s·T, x = X, z = X'/T, ``result.T`` and
+``result.parameters``. The estimate made on the scaled problem bounds max_s |X − X*| over
+X and the σ's; at the user's times t_k = s_k·T the error is at most
+est·(1 + max_s |X'(s)|) to first order (the σ_T error |ΔT|/T moves every point by
+|ΔT|/T·s·|X'|), which is what ``error_estimate`` reports.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from .errors import InputError
+from .model import BallSwitch, Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
+from .result import SolveResult
+
+T_NAME = "T"
+SWEEP = 2.0  # a free T's first guess is sought in [T/SWEEP, T·SWEEP] along the motion from x(0)
+SWEEP_POINTS = 4001
+SWEEP_TOL = 1e-9
+SWEEP_NEAR = 1e-3  # misses within this (relative to |x|) of the least count as near-best
+
+
+@dataclasses.dataclass(frozen=True)
+class Bound:
+    """b: R → (lo, hi), smooth and increasing, with its derivative and inverse."""
+
+    lo: float = -np.inf
+    hi: float = np.inf
+
+    def value(self, sigma: np.ndarray) -> np.ndarray:
+        lo, hi = self.lo, self.hi
+        if np.isfinite(lo) and np.isfinite(hi):
+            return lo + (hi - lo) / (1.0 + np.exp(-sigma))
+        if np.isfinite(lo):
+            return lo + np.exp(sigma)
+        if np.isfinite(hi):
+            return hi - np.exp(sigma)
+        return np.asarray(sigma, dtype=float)
+
+    def slope(self, sigma: np.ndarray) -> np.ndarray:
+        lo, hi = self.lo, self.hi
+        if np.isfinite(lo) and np.isfinite(hi):
+            e = np.exp(-np.abs(sigma))
+            return (hi - lo) * e / (1.0 + e) ** 2
+        if np.isfinite(lo) or np.isfinite(hi):
+            return np.exp(sigma)
+        return np.ones_like(sigma, dtype=float)
+
+    def inverse(self, value: float) -> float:
+        lo, hi = self.lo, self.hi
+        if np.isfinite(lo) and np.isfinite(hi):
+            return float(np.log((value - lo) / (hi - value)))
+        if np.isfinite(lo):
+            return float(np.log(value - lo))
+        if np.isfinite(hi):
+            return float(np.log(hi - value))
+        return float(value)
+
+
+def restated(model: InclusionModel, free_T: bool | None, parameters: Mapping[str, float] | None) -> InclusionModel:
+    """A copy of `model` with T free (True) or fixed (False) and the guesses of some parameters."""
+    out = copy.copy(model)
+    if free_T is not None:
+        if not isinstance(free_T, (bool, np.bool_)):
+            raise InputError("free_T", "True or False", free_T)
+        out.free_T = bool(free_T)
+    if parameters:
+        if not isinstance(parameters, Mapping):
+            raise InputError("parameters", "a mapping {name: starting guess}", parameters)
+        out.parameters = out._parameter_guesses({**dict(zip(model.parameter_names, model.parameters)), **parameters})
+    return out
+
+
+class Unknowns(InclusionModel):
+    """The model with its free T and parameters as constant states (module docstring):
+    states (x, σ_p, σ_T), y = (x, σ_p, σ_T, u)."""
+
+    def __init__(self, model: InclusionModel) -> None:
+        self.inner = model
+        self.name = model.name
+        self.description = model.description
+        self.default_tol = model.default_tol
+        self.default_scheme = model.default_scheme
+        self.control_names = tuple(model.control_names)
+        n, q = model.n_states, model.n_parameters
+        self.scaled = bool(model.free_T)
+        self.bounds = [Bound(*model.parameter_bounds.get(name, (-np.inf, np.inf))) for name in model.parameter_names]
+        self.time_bound = Bound(*model.T_bounds)
+        extra = (*model.parameter_names, *((T_NAME,) if self.scaled else ()))
+        self.state_names = (*model.state_names, *extra)
+        self.resolved = {} if self.scaled else dict(model.resolved)
+        self.end_indices = tuple(model.end_indices)
+        self.periodic = tuple(model.periodic)
+        self.n, self.q = n, q
+        self.T0 = float(model.T)
+        self._wrapped: dict[int, Callable] = {}
+        super().__init__(T=1.0 if self.scaled else model.T, x0=[*model.x0, *([np.nan] * len(extra))],
+                         end_values=model.end_values, free_T=False, parameters=())
+        self.T_guess = self.T0  # the user's; T0 may move to a better one (:meth:`_sweep`)
+        if self.scaled and np.all(np.isfinite(model.x0)) and not self.n_controls:
+            self.T0 = self._sweep()
+
+    def _sweep(self) -> float:
+        """A better first T where x(0) is given: the motion from x(0) with the guessed p,
+        integrated once over [T/SWEEP, T·SWEEP], and the T there that misses the end and
+        periodic conditions least (of the near-best, the nearest to the guess). A guess of
+        a period a quarter off can sit where the misses are stationary (a corner of the
+        relay's orbit): shooting from there does not move. The guess where it fails."""
+        from .errors import QdframeError
+        from .filippov import FilippovError, integrate, model_system
+        from .functional import Functional
+        from .grid import Grid
+
+        lo = max(self.T0 / SWEEP, self.time_bound.lo * (1 + 1e-9))
+        hi = min(self.T0 * SWEEP, self.time_bound.hi * (1 - 1e-9))
+        start = [*self.inner.x0, *(bound.inverse(p) for bound, p in zip(self.bounds, self.inner.parameters)),
+                 self.time_bound.inverse(hi)]
+        try:
+            system = model_system(Functional(self, Grid(1.0, 2, "implicit-euler")))
+            motion = integrate(system, start, 1.0, SWEEP_TOL, SWEEP_TOL)
+        except (QdframeError, FilippovError, np.linalg.LinAlgError, ValueError, OverflowError):
+            return self.T0
+        s = np.linspace(lo / hi, 1.0, SWEEP_POINTS)
+        X = motion(s)[:, : self.n]
+        end, periodic = list(self.end_indices), list(self.periodic)
+        if not end and not periodic:
+            return self.T0
+        misses = np.concatenate([X[:, end] - self.end_values, X[:, periodic] - self.inner.x0[periodic]], axis=1)
+        size = np.linalg.norm(misses, axis=1)
+        if not np.all(np.isfinite(size)):
+            return self.T0
+        near = size <= size.min() + SWEEP_NEAR * max(1.0, float(np.max(np.abs(X))))
+        times = s * hi
+        return float(times[near][np.argmin(np.abs(np.log(times[near] / self.T0)))])
+
+    # -- the columns of y = (x, σ_p, σ_T, u) and the model's y = (x, p, u)
+    @property
+    def width(self) -> int:
+        return self.n_states + self.n_controls
+
+    def _user(self, y: np.ndarray) -> np.ndarray:
+        """The model's own argument (x, p, u) (or (x, p) for the surface) from (x, σ_p, σ_T, u)."""
+        n, q = self.n, self.q
+        parts = [y[:, :n]] + [bound.value(y[:, n + i])[:, None] for i, bound in enumerate(self.bounds)]
+        parts.append(y[:, n + q + self.scaled:])
+        return np.concatenate(parts, axis=1)
+
+    def _gradient(self, y: np.ndarray, grad: np.ndarray, scale_by: np.ndarray | None = None) -> np.ndarray:
+        """∂/∂(x, σ_p, σ_T, u) from ∂/∂(x, p, u): the chain rule through b_i, a zero σ_T column
+        (T·v's σ_T column is added by :meth:`_times_T`)."""
+        n, q = self.n, self.q
+        grad = np.asarray(grad, dtype=float)
+        shape = (grad.shape[0],) + (1,) * (grad.ndim - 2)
+        parts = [grad[..., :n]]
+        for i, bound in enumerate(self.bounds):
+            parts.append(grad[..., n + i: n + i + 1] * bound.slope(y[:, n + i]).reshape(shape + (1,)))
+        if self.scaled:
+            parts.append(np.zeros(grad.shape[:-1] + (1,)))
+        parts.append(grad[..., n + q:])
+        return np.concatenate(parts, axis=-1)
+
+    def _T(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """T and dT/dσ_T per node."""
+        sigma = y[:, self.n + self.q]
+        return self.time_bound.value(sigma), self.time_bound.slope(sigma)
+
+    def _times_T(self, y: np.ndarray, value: np.ndarray, grad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """T·v and its gradient (the σ_T column dT/dσ_T·v) where T is free; v unchanged if not."""
+        if not self.scaled:
+            return value, grad
+        T, dT = self._T(y)
+        shape = (value.shape[0],) + (1,) * (value.ndim - 1)
+        grad = grad * T.reshape(shape + (1,))
+        grad[..., self.n + self.q] = value * dT.reshape(shape)
+        return value * T.reshape(shape), grad
+
+    # -- the wrapped pieces
+    def _max_group(self, group: MaxGroup) -> MaxGroup:
+        def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            value, grad = group.pieces(self._user(y))
+            return self._times_T(y, np.asarray(value, float), self._gradient(y, grad))
+
+        return MaxGroup(pieces, group.name)
+
+    def _min_group(self, group: MinGroup) -> MinGroup:
+        def pieces(y: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            value, grad = group.pieces(self._user(y), psi)
+            return self._times_T(y, np.asarray(value, float), self._gradient(y, grad))
+
+        values = None
+        if group.values is not None:
+            def values(y: np.ndarray, psi: np.ndarray) -> np.ndarray:
+                out = np.asarray(group.values(self._user(y), psi), float)  # type: ignore[misc]
+                return out * self._T(y)[0][:, None] if self.scaled else out
+
+        return MinGroup(pieces, group.name, values)
+
+    def _scalar(self, function: Callable) -> Callable:
+        """A function of y returning (value, gradient) with the model's argument: the same
+        function of (x, σ_p, σ_T, u), not scaled (a switch, a surface)."""
+        if id(function) not in self._wrapped:  # one wrapper per callable: terms sharing a switch share λ
+            def wrapped(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                value, grad = function(self._user(y))
+                return value, self._gradient(y, grad)
+
+            self._wrapped[id(function)] = wrapped
+        return self._wrapped[id(function)]
+
+    def _switch(self, switch: Callable | BallSwitch) -> Callable | BallSwitch:
+        if isinstance(switch, BallSwitch):
+            key = id(switch)
+            if key not in self._wrapped:
+                self._wrapped[key] = BallSwitch(self._scalar(switch.function), switch.dim, switch.name)  # type: ignore[assignment]
+            return self._wrapped[key]
+        return self._scalar(switch)
+
+    def _amplitude_group(self, piece: Callable) -> Callable:
+        def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            value, grad = piece(self._user(y))
+            return self._times_T(y, np.asarray(value, float), self._gradient(y, grad))
+
+        return pieces
+
+    def _sign(self, term: SignTerm) -> SignTerm:
+        amplitude = term.amplitude
+        if isinstance(amplitude, tuple):
+            amplitude = tuple(self._amplitude_group(group) for group in amplitude)
+        elif self.scaled:  # a constant a: T·a, a function of σ_T
+            a = float(amplitude)
+
+            def constant(y: np.ndarray, a: float = a) -> tuple[np.ndarray, np.ndarray]:
+                T, dT = self._T(y)
+                grad = np.zeros((y.shape[0], 1, self.width))
+                grad[:, 0, self.n + self.q] = a * dT
+                return (a * T)[:, None], grad
+
+            amplitude = (constant,)
+        return dataclasses.replace(term, amplitude=amplitude, switch=self._switch(term.switch))
+
+    def _still(self, coord: int) -> SetBlock:
+        """σ' = 0."""
+        def zero(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return np.zeros(y.shape[0]), np.zeros((y.shape[0], self.width))
+
+        return SetBlock.equation(coord, zero, name=f"{self.state_names[coord]}' = 0")
+
+    def _resolved(self, i: int, j: int) -> SetBlock:
+        """x_i' = x_j becomes X_i' = T·X_j on the scaled time."""
+        def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            grad = np.zeros((y.shape[0], self.width))
+            grad[:, j] = 1.0
+            return self._times_T(y, y[:, j].copy(), grad)
+
+        return SetBlock.equation(i, rhs, name=f"{self.state_names[i]}' = T·{self.state_names[j]}")
+
+    def blocks(self) -> tuple[SetBlock, ...]:
+        if "blocks" not in self._wrapped:
+            own = tuple(
+                SetBlock(block.coords, tuple(self._max_group(g) for g in block.max_groups),
+                         tuple(self._min_group(g) for g in block.min_groups), block.name,
+                         tuple(self._sign(term) for term in block.signs))
+                for block in self.inner.blocks())
+            resolved = tuple(self._resolved(i, j) for i, j in self.inner.resolved.items()) if self.scaled else ()
+            still = tuple(self._still(coord) for coord in range(self.n, self.n_states))
+            self._wrapped["blocks"] = own + resolved + still  # type: ignore[assignment]
+        return self._wrapped["blocks"]  # type: ignore[return-value]
+
+    def surface(self) -> Surface | None:
+        surface = self.inner.surface()
+        if surface is None:
+            return None
+        function = surface.function
+
+        def wrapped(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # the surface takes (x, p), no u
+            value, grad = function(self._user(x))
+            return value, self._gradient(x, grad)
+
+        return Surface(wrapped)
+
+    def cost(self) -> Cost | None:
+        cost = self.inner.cost()
+        if cost is None:
+            return None
+        return Cost(tuple(self._amplitude_group(g) for g in cost.max_groups),
+                    tuple(self._amplitude_group(g) for g in cost.min_groups), cost.weight)
+
+    # -- starting guesses and the way back
+    def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        times = t * self.T0 if self.scaled else t
+        x, z = self.inner.initial_guess(times)
+        z = np.asarray(z, float) * (self.T0 if self.scaled else 1.0)
+        sigma = [bound.inverse(p) for bound, p in zip(self.bounds, self.inner.parameters)]
+        if self.scaled:
+            sigma.append(self.time_bound.inverse(self.T0))
+        still = np.tile(sigma, (t.size, 1))
+        return np.concatenate([np.asarray(x, float), still], axis=1), np.concatenate([z, np.zeros_like(still)], axis=1)
+
+    def initial_controls(self, t: np.ndarray) -> np.ndarray:
+        return self.inner.initial_controls(t * self.T0 if self.scaled else t)
+
+    def found(self, x: np.ndarray) -> tuple[float, dict[str, float]]:
+        """T and the parameters of a scaled trajectory (the σ columns' means: constant on a solution)."""
+        sigma = np.mean(x[:, self.n:], axis=0)
+        parameters = {name: float(bound.value(sigma[i]))
+                      for i, (name, bound) in enumerate(zip(self.inner.parameter_names, self.bounds))}
+        T = float(self.time_bound.value(sigma[self.q])) if self.scaled else float(self.inner.T)
+        return T, parameters
+
+
+def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
+    """The result in the model's own time and states (module docstring)."""
+    n = wrapper.n
+    T, parameters = wrapper.found(np.asarray(result.x, float))
+    factor = T if wrapper.scaled else 1.0
+    speed = float(np.max(np.abs(result.z[:, :n]))) if result.z.size else 0.0
+    estimate = result.error_estimate
+    if estimate is not None:
+        estimate = estimate * (1.0 + speed) if wrapper.scaled else estimate
+    set_bounds = [None if b is None else {**b, "lower": b["lower"] / factor, "upper": b["upper"] / factor}
+                  for b in result.set_bounds if b is None or b["coordinate"] < n]
+    t, x = np.asarray(result.t, float) * factor, result.x[:, :n]
+    exact = wrapper.inner.exact_solution(t)
+    out = dataclasses.replace(
+        result, T=T, t=t, x=x, z=result.z[:, :n] / factor, state_names=tuple(wrapper.inner.state_names),
+        error_estimate=estimate, switch_times=np.asarray(result.switch_times, float) * factor, parameters=parameters,
+        set_bounds=set_bounds, solution_error=None if exact is None else float(np.max(np.abs(x - exact))),
+        options={**result.options, "free_T": wrapper.scaled, "T_guess": wrapper.T_guess, "T_start": wrapper.T0,
+                 "parameters_start": dict(zip(wrapper.inner.parameter_names, map(float, wrapper.inner.parameters)))},
+    )
+    if estimate is not None and out.status == "solved" and out.accuracy is not None:
+        bound = out.accuracy * max(1.0, float(np.max(np.abs(out.x))))
+        if estimate > bound:
+            out.status = "uncertified"
+            out.message = (f"{out.message}; the scaled problem is certified, but with T free the error at the "
+                           f"model's times, estimate {estimate:.1e}, exceeds the target {bound:.1e}")
+    return out
