@@ -108,6 +108,18 @@ def key_value(text: str) -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
+def parameter_guess(text: str) -> tuple[str, float]:
+    """NAME=GUESS, GUESS a finite number: a starting guess of an unknown parameter."""
+    key, sep, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not sep or not key.strip().isidentifier() or not np.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected NAME=GUESS like mu=1.5, got {text!r}")
+    return key.strip(), number
+
+
 def tolerances(text: str) -> list[float]:
     """Comma-separated positive numbers like 1e-3,1e-6, or `none` for an empty ladder."""
     if text.strip() == "none":

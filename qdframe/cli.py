@@ -19,7 +19,8 @@ import numpy as np
 
 from . import __version__
 from .argtypes import (
-    boundary_vector, continuation, figure_format, finite_float, integer, key_value, names, node_counts, positive_float,
+    boundary_vector, continuation, figure_format, finite_float, integer, key_value, names, node_counts, parameter_guess,
+    positive_float,
     vector, writable,
 )
 from .authoring.check import add_check_parser, main_check
@@ -73,6 +74,15 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--xT", type=boundary_vector,
                        help="end values of the model's fixed coordinates J, in order; or all n, free where not given")
     solve.add_argument("--periodic", type=names, metavar="I,I,..", help="coordinates (names or indices) with x(T) = x(0)")
+    free = solve.add_mutually_exclusive_group()
+    free.add_argument("--free-T", dest="free_T", action="store_const", const=True,
+                      help="find T with x (a stopping time, a period), starting from --T or the model's T; "
+                           "result.T is the T found")
+    free.add_argument("--fixed-T", dest="free_T", action="store_const", const=False,
+                      help="keep T fixed where the model leaves it free")
+    solve.add_argument("--parameter", action="append", type=parameter_guess, metavar="NAME=GUESS",
+                       help="starting guess of one of the model's unknown parameters (repeatable; "
+                            "`qdframe list` shows them); result.parameters holds the values found")
     solve.add_argument("--scheme", help="discretization: implicit-euler, radau-iia (odd N), trapezoid "
                                         "(default: the model's, implicit-euler unless it says otherwise)")
     solve.add_argument("--signs", choices=("exact", "band"), default="exact",
@@ -221,7 +231,8 @@ def _solve(args: argparse.Namespace) -> int:
     for flag in ("json", "plot"):
         if getattr(args, flag) and not (flag == "json" and to_stdout):
             writable(f"--{flag}", getattr(args, flag))
-    overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic}
+    overrides = {"T": args.T, "x0": args.x0, "end_values": args.xT, "periodic": args.periodic, "free_T": args.free_T,
+                 "parameters": dict(args.parameter) if args.parameter else None}
     model = load_model(args.model, **{k: v for k, v in overrides.items() if v is not None})
     direction = with_options(make_direction(args.direction), dict(args.option or ()))
     for kind, name in (("line_searches", args.line_search), ("schemes", args.scheme)):

@@ -256,9 +256,10 @@ class InclusionModel(ABC):
             if not isinstance(free_T, (bool, np.bool_)):
                 raise InputError("free_T", "True or False", free_T)
             self.free_T = bool(free_T)
-        self.T_bounds = _bounds("T_bounds", self.T_bounds, self.T)
-        if self.free_T and self.T_bounds[0] < 0:
-            raise InputError("T_bounds", "(lo, hi) with 0 ≤ lo < T < hi", self.T_bounds)
+        self.T_bounds = _bounds("T_bounds", self.T_bounds)
+        if self.free_T and not (0 <= self.T_bounds[0] < self.T < self.T_bounds[1]):
+            raise InputError("T", f"a starting guess inside T_bounds ({self.T_bounds[0]:g}, {self.T_bounds[1]:g}), "
+                                  "0 ≤ lo", self.T)
         self.parameters = self._parameter_guesses(parameters)
         self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n, free=True)
         if end_values is not None and len(end_values) == n != len(self.end_indices):
@@ -299,7 +300,9 @@ class InclusionModel(ABC):
             raise InputError(f"{type(self).__name__}.parameter_bounds", f"keys among parameter_names ({', '.join(names)})",
                              ", ".join(map(str, unknown)))
         for name, guess in zip(names, guesses):
-            _bounds(f"parameter_bounds[{name!r}]", self.parameter_bounds.get(name, (-np.inf, np.inf)), guess)
+            lo, hi = _bounds(f"parameter_bounds[{name!r}]", self.parameter_bounds.get(name, (-np.inf, np.inf)))
+            if not lo < guess < hi:
+                raise InputError(f"parameters[{name!r}]", f"a starting guess inside its bounds ({lo:g}, {hi:g})", float(guess))
         return guesses
 
     @property
@@ -398,14 +401,14 @@ def _positive_float(field_name: str, value: object) -> float:
     return number
 
 
-def _bounds(field_name: str, bounds: object, guess: float) -> tuple[float, float]:
-    """(lo, hi) with lo < guess < hi (infinite ends allowed)."""
+def _bounds(field_name: str, bounds: object) -> tuple[float, float]:
+    """(lo, hi) with lo < hi (infinite ends allowed)."""
     try:
         lo, hi = (float(v) for v in bounds)  # type: ignore[union-attr]
     except (TypeError, ValueError):
         raise InputError(field_name, "a pair (lo, hi) of numbers (±inf for none)", bounds) from None
-    if np.isnan(lo) or np.isnan(hi) or not lo < guess < hi:
-        raise InputError(field_name, f"(lo, hi) with lo < {guess:g} < hi (the starting guess strictly inside)", bounds)
+    if np.isnan(lo) or np.isnan(hi) or not lo < hi:
+        raise InputError(field_name, "a pair (lo, hi) with lo < hi (±inf for none)", bounds)
     return lo, hi
 
 

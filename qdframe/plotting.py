@@ -105,7 +105,9 @@ def plot_result(
     _history(history, result)
     grid = f"{result.nodes} nodes" + (f", {scheme}" if scheme else "")
     count = f"{result.iterations} iteration" + ("" if result.iterations == 1 else "s")
-    fig.suptitle(f"{result.model}: {result.status} after {count} ({grid})")
+    found = ([f"T = {result.T:.8g}"] if result.options.get("free_T") else []) + [
+        f"{name} = {value:.8g}" for name, value in result.parameters.items()]
+    fig.suptitle(f"{result.model}: {result.status} after {count} ({grid})" + (f"; found {', '.join(found)}" if found else ""))
     if path is not None:
         fig.savefig(path, dpi=dpi)
     return fig
@@ -297,6 +299,8 @@ def _resolve_model(result: SolveResult, model: InclusionModel | None) -> tuple[I
         return None, f"no registered model {result.model!r}: {exc}"
     if tuple(loaded.state_names) != tuple(result.state_names):
         return None, f"the registered {result.model!r} has other states"
+    if loaded.parameter_names:
+        return None, f"{result.model!r} has unknown parameters: its sets depend on the values found"
     return loaded, ""
 
 

@@ -90,6 +90,9 @@ def simulate(
         raise InputError("--to", f"a time after --from = {t_start}", t_end)
     if not (np.isfinite(dt) and dt > 0):
         raise InputError("dt", "a positive number", dt)
+    if model.parameter_names:
+        raise InputError("model", f"a model without unknown parameters for simulation ({model.name} has "
+                                  f"{', '.join(model.parameter_names)}: fix them in its sets to simulate it)")
     x = np.asarray(x_start, dtype=float).reshape(-1)
     if x.size != model.n_states or not np.all(np.isfinite(x)):
         raise InputError("x0", f"{model.n_states} finite comma-separated numbers", ",".join(map(str, x)))

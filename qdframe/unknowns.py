@@ -37,7 +37,7 @@ from .model import BallSwitch, Cost, InclusionModel, MaxGroup, MinGroup, SetBloc
 from .result import SolveResult
 
 T_NAME = "T"
-SWEEP = 2.0  # a free T's first guess is sought in [T/SWEEP, T·SWEEP] along the motion from x(0)
+SWEEP_OCTAVES = 6  # a free T's first guess is sought in [T/2, T·2^k], k ≤ this, along the motion from x(0)
 SWEEP_POINTS = 4001
 SWEEP_TOL = 1e-9
 SWEEP_NEAR = 1e-3  # misses within this (relative to |x|) of the least count as near-best
@@ -125,36 +125,50 @@ class Unknowns(InclusionModel):
 
     def _sweep(self) -> float:
         """A better first T where x(0) is given: the motion from x(0) with the guessed p,
-        integrated once over [T/SWEEP, T·SWEEP], and the T there that misses the end and
-        periodic conditions least (of the near-best, the nearest to the guess). A guess of
-        a period a quarter off can sit where the misses are stationary (a corner of the
-        relay's orbit): shooting from there does not move. The guess where it fails."""
+        integrated once over [T/2, T·2^k], and the T there that misses the end and periodic
+        conditions least (of the near-best, the nearest to the guess); k = 1, 2, … up to
+        SWEEP_OCTAVES until one misses by less than SWEEP_NEAR·max(1, |x|). A guess of a
+        period a quarter off can sit where the misses are stationary (a corner of the relay's
+        orbit), and shooting from there does not move. The guess where the motion fails."""
+        if not self.end_indices and not self.periodic:
+            return self.T0
+        best = self.T0
+        for octave in range(1, SWEEP_OCTAVES + 1):
+            found = self._swept(self.T0 / 2, self.T0 * 2.0**octave)
+            if found is None:
+                return best
+            best, near = found
+            if near:
+                break
+        return best
+
+    def _swept(self, lo: float, hi: float) -> tuple[float, bool] | None:
+        """(the best T in [lo, hi], whether it nearly meets the conditions), or None."""
         from .errors import QdframeError
         from .filippov import FilippovError, integrate, model_system
         from .functional import Functional
         from .grid import Grid
 
-        lo = max(self.T0 / SWEEP, self.time_bound.lo * (1 + 1e-9))
-        hi = min(self.T0 * SWEEP, self.time_bound.hi * (1 - 1e-9))
+        lo = max(lo, self.time_bound.lo * (1 + 1e-9) + 1e-300)
+        hi = min(hi, self.time_bound.hi * (1 - 1e-9))
         start = [*self.inner.x0, *(bound.inverse(p) for bound, p in zip(self.bounds, self.inner.parameters)),
                  self.time_bound.inverse(hi)]
         try:
-            system = model_system(Functional(self, Grid(1.0, 2, "implicit-euler")))
-            motion = integrate(system, start, 1.0, SWEEP_TOL, SWEEP_TOL)
+            motion = integrate(model_system(Functional(self, Grid(1.0, 2, "implicit-euler"))), start, 1.0,
+                               SWEEP_TOL, SWEEP_TOL)
         except (QdframeError, FilippovError, np.linalg.LinAlgError, ValueError, OverflowError):
-            return self.T0
+            return None
         s = np.linspace(lo / hi, 1.0, SWEEP_POINTS)
         X = motion(s)[:, : self.n]
         end, periodic = list(self.end_indices), list(self.periodic)
-        if not end and not periodic:
-            return self.T0
         misses = np.concatenate([X[:, end] - self.end_values, X[:, periodic] - self.inner.x0[periodic]], axis=1)
         size = np.linalg.norm(misses, axis=1)
         if not np.all(np.isfinite(size)):
-            return self.T0
-        near = size <= size.min() + SWEEP_NEAR * max(1.0, float(np.max(np.abs(X))))
+            return None
+        scale = SWEEP_NEAR * max(1.0, float(np.max(np.abs(X))))
+        near = size <= size.min() + scale
         times = s * hi
-        return float(times[near][np.argmin(np.abs(np.log(times[near] / self.T0)))])
+        return float(times[near][np.argmin(np.abs(np.log(times[near] / self.T0)))]), bool(size.min() <= scale)
 
     # -- the columns of y = (x, σ_p, σ_T, u) and the model's y = (x, p, u)
     @property

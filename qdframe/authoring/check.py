@@ -121,6 +121,10 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
         raise InputError("samples", "an integer ≥ 1", samples)
     if not (isinstance(tol, (int, float)) and np.isfinite(tol) and tol > 0):
         raise InputError("tol", "a positive number", tol)
+    if model.has_unknowns:  # its pieces take (x, p, u): checked as the solver sees them, T and p as states
+        from ..unknowns import Unknowns
+
+        model = Unknowns(model)
     rng = np.random.default_rng(seed)
     n = model.n_states
     names = list(model.state_names) + list(model.control_names)
