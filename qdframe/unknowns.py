@@ -7,9 +7,11 @@ time s = t/T ∈ [0, 1] (when T is free) with the unknowns as states that do not
     X(s) = x(s·T),   X' ∈ T·F(X, p, u),   σ_p' = 0,   σ_T' = 0,
 
 T = b_T(σ_T) and p_i = b_i(σ_i), each b a smooth increasing map from R onto the open
-interval (lo, hi) of its bounds: the identity without bounds, lo + e^σ or hi − e^σ with
+interval (lo, hi) of its bounds: the identity without bounds, lo + e^σ or hi − e^−σ with
 one, lo + (hi − lo)/(1 + e^−σ) with both; T's bounds are (0, ∞) unless the model says
-otherwise, so a periodic orbit cannot collapse onto T = 0. For T > 0 the support function
+otherwise (``T_bounds``). T = 0 with x constant meets every periodic condition: from a poor
+guess a periodic orbit can shrink towards it, which the first guess's sweep along the
+motion (:meth:`Unknowns._sweep`) avoids and ``T_bounds = (lo, hi)``, lo > 0, forbids. For T > 0 the support function
 of T·F is T·c(F, ψ): every max-group, min-group and sign amplitude of the model is scaled
 by T, a switch s(y) is not (Sgn(s) does not change), the cost integrand is scaled by T
 (∫ c dt = ∫ T·c ds) and the surface is not. The σ's start and end free; the boundary,
@@ -57,7 +59,7 @@ class Bound:
         if np.isfinite(lo):
             return lo + np.exp(sigma)
         if np.isfinite(hi):
-            return hi - np.exp(sigma)
+            return hi - np.exp(-sigma)
         return np.asarray(sigma, dtype=float)
 
     def slope(self, sigma: np.ndarray) -> np.ndarray:
@@ -65,8 +67,10 @@ class Bound:
         if np.isfinite(lo) and np.isfinite(hi):
             e = np.exp(-np.abs(sigma))
             return (hi - lo) * e / (1.0 + e) ** 2
-        if np.isfinite(lo) or np.isfinite(hi):
+        if np.isfinite(lo):
             return np.exp(sigma)
+        if np.isfinite(hi):
+            return np.exp(-sigma)
         return np.ones_like(sigma, dtype=float)
 
     def inverse(self, value: float) -> float:
@@ -76,7 +80,7 @@ class Bound:
         if np.isfinite(lo):
             return float(np.log(value - lo))
         if np.isfinite(hi):
-            return float(np.log(hi - value))
+            return float(-np.log(hi - value))
         return float(value)
 
 

@@ -1,0 +1,237 @@
+"""Free end time and unknown parameters (qdframe.unknowns), against exact answers."""
+
+from __future__ import annotations
+
+import json
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe.errors import InputError
+from qdframe.model import InclusionModel, SetBlock, SignTerm
+from qdframe.models.identification import BlockFrictionCoefficient, BlockStoppingTime, RelayPeriod
+from qdframe.sets import SetModel, Sgn
+from qdframe.unknowns import Bound, Unknowns
+
+
+@pytest.mark.parametrize("model", [BlockStoppingTime, RelayPeriod, BlockFrictionCoefficient])
+def test_default_call_finds_T_and_parameters(model):
+    """The default call: T and p within 1e-6 of the exact ones, x within 1e-6 of the closed
+    form at the user's times, and the estimate not below the true error."""
+    result = qdframe.solve(model())
+    assert result.status == "solved", result.message
+    if model.exact_T is not None:
+        assert result.options["free_T"] and abs(result.T - model.exact_T) <= 1e-6
+        assert result.t[-1] == pytest.approx(result.T, rel=1e-14)
+    for name, value in model.exact_parameters.items():
+        assert abs(result.parameters[name] - value) <= 1e-6
+    error = np.max(np.abs(result.x - model().exact_solution(result.t)))
+    assert error <= 1e-6 and error <= result.error_estimate
+    assert result.solution_error == pytest.approx(error)
+    assert result.x.shape[1] == 2 and result.state_names == tuple(model.state_names)
+
+
+@pytest.mark.parametrize("scheme", ["implicit-euler", "trapezoid", "radau-iia"])
+def test_every_scheme_on_a_fixed_grid_estimates_its_error(scheme):
+    """On a fixed grid of every scheme the stopping time converges and the estimate, which
+    covers T, is not below the error at the user's times (exact: p = 2t − t²)."""
+    result = qdframe.solve(BlockStoppingTime(), nodes=61, scheme=scheme)
+    assert result.status in ("solved", "uncertified"), result.message
+    exact = BlockStoppingTime().motion(result.t)
+    error = np.max(np.abs(result.x - exact))
+    assert abs(result.T - 0.5) <= 0.02
+    assert result.error_estimate is not None and error <= result.error_estimate
+    assert np.allclose(np.gradient(result.x[:, 0], result.t), result.x[:, 1], atol=0.1)  # z and t in physical time
+
+
+def test_accuracy_target_holds_at_the_users_times():
+    result = qdframe.solve(RelayPeriod(T=4.5), accuracy=1e-8)
+    assert result.status == "solved", result.message
+    error = np.max(np.abs(result.x - RelayPeriod().motion(result.t)))
+    assert error <= result.error_estimate <= 1e-8 * max(1.0, np.max(np.abs(result.x)))
+    assert abs(result.T - 4 * np.sqrt(2)) <= 1e-8
+
+
+def test_free_T_and_guesses_from_solve_and_from_the_model():
+    """solve(free_T=True) on a fixed-T model; solve(parameters=…) and model(parameters=…)
+    give guesses; free_T=False fixes a free T."""
+    from qdframe.models.user_friction import RelayOscillator
+
+    result = qdframe.solve(RelayOscillator(T=5.0, periodic=("x1", "x2")), free_T=True)
+    assert result.solved and abs(result.T - 4 * np.sqrt(2)) <= 1e-6
+    for found in (qdframe.solve(BlockFrictionCoefficient(), parameters={"mu": 3.0}),
+                  qdframe.solve(BlockFrictionCoefficient(parameters={"mu": 0.5}))):
+        assert found.solved and abs(found.parameters["mu"] - 2.0) <= 1e-6
+        assert found.options["parameters_start"]["mu"] in (3.0, 0.5)
+    fixed = qdframe.solve(BlockStoppingTime(T=0.5), free_T=False)
+    assert fixed.T == 0.5 and not fixed.options.get("free_T")
+    assert fixed.solved and abs(fixed.x[-1, 0] - 0.75) <= 1e-6
+
+
+class HandWrittenCoefficient(InclusionModel):
+    """p' = v, v' ∈ −μ·Sgn(v) written by hand: the pieces take y = (p, v, μ)."""
+
+    name = "hand-written-coefficient"
+    state_names = ("p", "v")
+    parameter_names = ("mu",)
+    default_parameters = (1.0,)
+    parameter_bounds = {"mu": (0.5, 5.0)}  # both ends: μ = 0.5 + 4.5/(1 + e^−σ)
+    default_x0 = (0.0, 2.0)
+    end_indices = (0,)
+    default_end_values = (1.0,)
+    default_T = 1.5
+
+    def blocks(self):
+        def velocity(y):
+            grad = np.zeros((y.shape[0], 3))
+            grad[:, 1] = 1.0
+            return y[:, 1], grad
+
+        def amplitude(y):
+            grad = np.zeros((y.shape[0], 1, 3))
+            grad[:, 0, 2] = 1.0
+            return y[:, 2:3], grad
+
+        def switch(y):
+            grad = np.zeros((y.shape[0], 3))
+            grad[:, 1] = 1.0
+            return y[:, 1], grad
+
+        def none(y):
+            return np.zeros(y.shape[0]), np.zeros((y.shape[0], 3))
+
+        return (SetBlock.equation(0, velocity, "v"),
+                SetBlock.equation(1, none, "0", signs=(SignTerm((amplitude,), switch, sense=-1.0, name="mu·Sgn(v)"),)))
+
+
+def test_a_hand_written_model_with_a_bounded_parameter():
+    result = qdframe.solve(HandWrittenCoefficient())
+    assert result.solved, result.message
+    assert abs(result.parameters["mu"] - 2.0) <= 1e-6
+    assert np.max(np.abs(result.x - BlockFrictionCoefficient().motion(result.t))) <= 1e-6
+    from qdframe.authoring import check_model
+
+    assert check_model(HandWrittenCoefficient(), samples=8).ok
+
+
+class ResolvedRelay(InclusionModel):
+    """The relay with x1' = x2 resolved (no unknown z1): with T free it is X1' = T·X2."""
+
+    name = "resolved-relay"
+    state_names = ("x1", "x2")
+    resolved = {0: 1}
+    default_x0 = (1.0, 0.0)
+    periodic = (0, 1)
+    default_T = 5.0
+    free_T = True
+
+    def blocks(self):
+        def none(y):
+            return np.zeros(y.shape[0]), np.zeros((y.shape[0], 2))
+
+        def switch(y):
+            grad = np.zeros((y.shape[0], 2))
+            grad[:, 0] = 1.0
+            return y[:, 0], grad
+
+        return (SetBlock.equation(1, none, "0", signs=(SignTerm(1.0, switch, sense=-1.0),)),)
+
+
+def test_resolved_states_and_constant_amplitudes_scale_with_T():
+    result = qdframe.solve(ResolvedRelay())
+    assert result.solved, result.message
+    assert abs(result.T - 4 * np.sqrt(2)) <= 1e-6
+    assert np.max(np.abs(result.x - RelayPeriod().motion(result.t))) <= 1e-6
+
+
+def test_the_restated_model_has_the_scaled_support():
+    """c(T·F, ψ) = T·c(F, ψ): the wrapped pieces at σ_T = log T are T times the model's, with
+    the chain rule through the parameter's bound."""
+    model = Unknowns(BlockStoppingTime())
+    assert model.state_names == ("p", "v", "T") and model.T == 1.0
+    y = np.array([[0.1, 1.5, np.log(0.7)]])
+    (group,) = model.blocks()[0].max_groups
+    value, grad = group.pieces(y)
+    assert value[0, 0, 0] == pytest.approx(0.7 * 1.5)
+    assert grad[0, 0, 0] == pytest.approx([0.0, 0.7, 0.7 * 1.5])
+    term = model.blocks()[1].signs[0]
+    a, da = term.amplitude[0](y)
+    assert a[0, 0] == pytest.approx(2 * 0.7) and da[0, 0, 2] == pytest.approx(2 * 0.7)
+    wrapped = Unknowns(BlockFrictionCoefficient())
+    assert wrapped.state_names == ("p", "v", "mu") and wrapped.T == 1.5
+
+
+def test_bounds_map_the_real_line_onto_their_interval():
+    sigma = np.linspace(-30, 30, 7)
+    for lo, hi in ((-np.inf, np.inf), (0.0, np.inf), (-np.inf, 3.0), (0.5, 5.0)):
+        bound = Bound(lo, hi)
+        values = bound.value(sigma)
+        assert np.all(values >= lo) and np.all(values <= hi) and np.all(np.diff(values) >= 0)
+        for guess in (1.0, 2.0):
+            assert bound.value(np.array(bound.inverse(guess))) == pytest.approx(guess)
+        step = 1e-6
+        numeric = (bound.value(np.array(0.3 + step)) - bound.value(np.array(0.3 - step))) / (2 * step)
+        assert bound.slope(np.array(0.3)) == pytest.approx(numeric, rel=1e-6)
+
+
+def test_results_carry_T_and_parameters():
+    result = qdframe.solve(BlockFrictionCoefficient())
+    data = json.loads(result.to_json())
+    assert data["parameters"]["mu"] == pytest.approx(2.0) and data["T"] == 1.5
+    assert "mu = 2" in result.summary() and "parameters: mu = 2" in repr(result)
+    pytest.importorskip("pandas")
+    assert result.to_dataframe().attrs["parameter_mu"] == pytest.approx(2.0)
+    timed = qdframe.solve(BlockStoppingTime())
+    assert "(found)" in timed.summary() and timed.to_dataframe().attrs["T"] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: BlockFrictionCoefficient(parameters={"nu": 1.0}), "parameters"),
+    (lambda: BlockFrictionCoefficient(parameters={"mu": -1.0}), "parameters['mu']"),
+    (lambda: BlockFrictionCoefficient(parameters=(1.0, 2.0)), "parameters"),
+    (lambda: BlockStoppingTime(free_T="yes"), "free_T"),
+    (lambda: qdframe.solve(BlockStoppingTime(), free_T=1), "free_T"),
+    (lambda: qdframe.solve(BlockFrictionCoefficient(), parameters=[1.0]), "parameters"),
+])
+def test_bad_unknowns_are_named(make, field):
+    with pytest.raises(InputError) as caught:
+        make()
+    assert caught.value.field == field
+
+
+def test_bad_declarations_are_named():
+    class Clash(SetModel):
+        state_names = "p v"
+        parameter_names = "v"
+        default_parameters = (1.0,)
+        default_x0 = (0.0, 1.0)
+
+        def sets(self, p, v, v2):
+            return {p: v, v: -v2}
+
+    with pytest.raises(InputError, match="parameter_names"):
+        Clash()
+
+    class BadBounds(BlockFrictionCoefficient):
+        parameter_bounds = {"mu": (3.0, 1.0)}
+
+    with pytest.raises(InputError, match="parameter_bounds"):
+        BadBounds()
+
+
+def test_command_line_free_T_and_parameter(tmp_path, capsys):
+    from qdframe.cli import main
+
+    out = tmp_path / "r.json"
+    assert main(["solve", "relay-oscillator", "--free-T", "--T", "5", "--periodic", "x1,x2", "--json", str(out),
+                 "--quiet"]) == 0
+    assert abs(json.loads(out.read_text())["T"] - 4 * np.sqrt(2)) <= 1e-6
+    assert main(["solve", "block-friction-coefficient", "--parameter", "mu=4"]) == 0
+    assert "mu = 2" in capsys.readouterr().out
+    assert main(["solve", "block-stopping-time", "--fixed-T", "--T", "0.5", "--quiet"]) == 0
+    assert main(["solve", "block-friction-coefficient", "--parameter", "mu"]) == 2
+    assert "NAME=GUESS" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["solve", "--help"])
+    helped = capsys.readouterr().out
+    assert "--free-T" in helped and "--parameter" in helped
