@@ -299,8 +299,10 @@ def _resolve_model(result: SolveResult, model: InclusionModel | None) -> tuple[I
         return None, f"no registered model {result.model!r}: {exc}"
     if tuple(loaded.state_names) != tuple(result.state_names):
         return None, f"the registered {result.model!r} has other states"
-    if loaded.parameter_names:
-        return None, f"{result.model!r} has unknown parameters: its sets depend on the values found"
+    if loaded.parameter_names:  # its sets at the values found
+        from .unknowns import Unknowns, restated
+
+        loaded = Unknowns(restated(loaded, False, result.parameters or None), fixed=True)
     return loaded, ""
 
 

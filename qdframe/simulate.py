@@ -85,14 +85,16 @@ def simulate(
     dt: float = 1e-4,
     controls: Sequence[float] | Callable[[float], np.ndarray] | None = None,
 ) -> Simulation:
-    """Simulate x' ∈ F(x) (controls u(t), default 0) from x(t_start) = x_start to t_end."""
+    """Simulate x' ∈ F(x) (controls u(t), default 0) from x(t_start) = x_start to t_end; a model
+    with unknown parameters at their values (`model(parameters={...})`, else its guesses)."""
     if not (np.isfinite(t_start) and np.isfinite(t_end) and t_end > t_start):
         raise InputError("--to", f"a time after --from = {t_start}", t_end)
     if not (np.isfinite(dt) and dt > 0):
         raise InputError("dt", "a positive number", dt)
-    if model.parameter_names:
-        raise InputError("model", f"a model without unknown parameters for simulation ({model.name} has "
-                                  f"{', '.join(model.parameter_names)}: fix them in its sets to simulate it)")
+    if model.parameter_names:  # simulated with its parameters' values (guesses: `parameters=` of the model)
+        from .unknowns import Unknowns, restated
+
+        model = Unknowns(restated(model, False, None), fixed=True)
     x = np.asarray(x_start, dtype=float).reshape(-1)
     if x.size != model.n_states or not np.all(np.isfinite(x)):
         raise InputError("x0", f"{model.n_states} finite comma-separated numbers", ",".join(map(str, x)))

@@ -100,20 +100,27 @@ def restated(model: InclusionModel, free_T: bool | None, parameters: Mapping[str
 
 class Unknowns(InclusionModel):
     """The model with its free T and parameters as constant states (module docstring):
-    states (x, σ_p, σ_T), y = (x, σ_p, σ_T, u)."""
+    states (x, σ_p, σ_T), y = (x, σ_p, σ_T, u). With `fixed` the parameters are not
+    unknowns but the model's values (its guesses), inserted into every piece's argument:
+    states (x, σ_T), the form :func:`qdframe.simulate.simulate`, the plots and the cost
+    comparison of ``qdframe bench unknowns`` use."""
 
-    def __init__(self, model: InclusionModel) -> None:
+    def __init__(self, model: InclusionModel, fixed: bool = False) -> None:
         self.inner = model
+        self.fixed = bool(fixed)
+        self.values = np.asarray(model.parameters, dtype=float)
         self.name = model.name
         self.description = model.description
         self.default_tol = model.default_tol
         self.default_scheme = model.default_scheme
         self.control_names = tuple(model.control_names)
-        n, q = model.n_states, model.n_parameters
+        n = model.n_states
         self.scaled = bool(model.free_T)
-        self.bounds = [Bound(*model.parameter_bounds.get(name, (-np.inf, np.inf))) for name in model.parameter_names]
+        self.bounds = [] if self.fixed else [Bound(*model.parameter_bounds.get(name, (-np.inf, np.inf)))
+                                             for name in model.parameter_names]
+        q = len(self.bounds)  # the parameters' columns (none when fixed)
         self.time_bound = Bound(*model.T_bounds)
-        extra = (*model.parameter_names, *((T_NAME,) if self.scaled else ()))
+        extra = (*model.parameter_names[:q], *((T_NAME,) if self.scaled else ()))
         self.state_names = (*model.state_names, *extra)
         self.resolved = {} if self.scaled else dict(model.resolved)
         self.end_indices = tuple(model.end_indices)
@@ -183,12 +190,14 @@ class Unknowns(InclusionModel):
         """The model's own argument (x, p, u) (or (x, p) for the surface) from (x, σ_p, σ_T, u)."""
         n, q = self.n, self.q
         parts = [y[:, :n]] + [bound.value(y[:, n + i])[:, None] for i, bound in enumerate(self.bounds)]
+        if self.fixed and self.values.size:
+            parts.append(np.broadcast_to(self.values, (y.shape[0], self.values.size)))
         parts.append(y[:, n + q + self.scaled:])
         return np.concatenate(parts, axis=1)
 
-    def _gradient(self, y: np.ndarray, grad: np.ndarray, scale_by: np.ndarray | None = None) -> np.ndarray:
-        """∂/∂(x, σ_p, σ_T, u) from ∂/∂(x, p, u): the chain rule through b_i, a zero σ_T column
-        (T·v's σ_T column is added by :meth:`_times_T`)."""
+    def _gradient(self, y: np.ndarray, grad: np.ndarray) -> np.ndarray:
+        """∂/∂(x, σ_p, σ_T, u) from ∂/∂(x, p, u): the chain rule through b_i (fixed p: its columns
+        dropped), a zero σ_T column (T·v's σ_T column is added by :meth:`_times_T`)."""
         n, q = self.n, self.q
         grad = np.asarray(grad, dtype=float)
         shape = (grad.shape[0],) + (1,) * (grad.ndim - 2)
@@ -197,7 +206,7 @@ class Unknowns(InclusionModel):
             parts.append(grad[..., n + i: n + i + 1] * bound.slope(y[:, n + i]).reshape(shape + (1,)))
         if self.scaled:
             parts.append(np.zeros(grad.shape[:-1] + (1,)))
-        parts.append(grad[..., n + q:])
+        parts.append(grad[..., n + q + (self.values.size if self.fixed else 0):])
         return np.concatenate(parts, axis=-1)
 
     def _T(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -342,8 +351,8 @@ class Unknowns(InclusionModel):
     def found(self, x: np.ndarray) -> tuple[float, dict[str, float]]:
         """T and the parameters of a scaled trajectory (the σ columns' means: constant on a solution)."""
         sigma = np.mean(x[:, self.n:], axis=0)
-        parameters = {name: float(bound.value(sigma[i]))
-                      for i, (name, bound) in enumerate(zip(self.inner.parameter_names, self.bounds))}
+        parameters = dict(zip(self.inner.parameter_names, map(float, self.values))) if self.fixed else {
+            name: float(bound.value(sigma[i])) for i, (name, bound) in enumerate(zip(self.inner.parameter_names, self.bounds))}
         T = float(self.time_bound.value(sigma[self.q])) if self.scaled else float(self.inner.T)
         return T, parameters
 

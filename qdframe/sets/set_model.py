@@ -28,7 +28,7 @@ class SetModel(InclusionModel):
 
     - ``state_names`` / ``control_names`` may be one string, ``"x1 x2"``;
     - ``default_xT = {"x2": 1.0}`` fixes x_j(T) by name (instead of ``end_indices`` and
-      ``default_end_values``);
+      ``default_end_values``); ``periodic`` may name its states, ``("x1", "x2")``;
     - ``penalty``: λ of the objective ∫cost + λ·I when there is a running cost.
 
     - ``parameter_names`` may be one string, ``"mu"``: unknown constants found with x
@@ -50,6 +50,9 @@ class SetModel(InclusionModel):
         cls.state_names = _names(cls.state_names)
         cls.control_names = _names(cls.control_names)
         cls.parameter_names = _names(cls.parameter_names)
+        if "periodic" in cls.__dict__:  # names or indices
+            cls.periodic = tuple(cls.state_names.index(c) if isinstance(c, str) and c in cls.state_names else c
+                                 for c in cls.periodic)
         if "default_xT" in cls.__dict__ and cls.default_xT is not None:
             names = list(cls.state_names)
             missing = [k for k in cls.default_xT if k not in names]
