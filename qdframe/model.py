@@ -222,6 +222,9 @@ class InclusionModel(ABC):
     # robust for sticking, sliding and switching; smooth models may prefer "radau-iia" or
     # "trapezoid" (the paper's, second order)
     default_scheme: ClassVar[str] = "implicit-euler"
+    # states with x_i' = 0 exactly (their block z_i = 0): unknown constants, which gauss-newton
+    # keeps one unknown for all nodes (qdframe.unknowns declares its T and parameters so)
+    constant_states: ClassVar[tuple[int, ...]] = ()
     # free end time (:mod:`qdframe.unknowns`): T is found with x, starting from `T`, kept in
     # `T_bounds` (lo, hi), 0 ≤ lo < hi ≤ inf
     free_T: ClassVar[bool] = False

@@ -130,6 +130,7 @@ class Unknowns(InclusionModel):
         self._wrapped: dict[int, Callable] = {}
         super().__init__(T=1.0 if self.scaled else model.T, x0=[*model.x0, *([np.nan] * len(extra))],
                          end_values=model.end_values, free_T=False, parameters=())
+        self.constant_states = tuple(range(n, self.n_states))
         self.T_guess = self.T0  # the user's; T0 may move to a better one (:meth:`_sweep`)
         if self.scaled and np.all(np.isfinite(model.x0)) and not self.n_controls:
             self.T0 = self._sweep()

@@ -62,6 +62,12 @@ def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> N
     bench_scale.add_argument("--repeat", type=integer(1), default=1,
                              help="processes measuring each cell: the least s/iter and floor are kept (default 1)")
     bench_scale.add_argument("--json", metavar="FILE", help="write the cells and exponents as JSON")
+    bench_unknowns = benches.add_parser(
+        "unknowns", help="seconds per Newton iteration with T or parameters unknown against the same model with "
+                         "them fixed")
+    bench_unknowns.add_argument("--models", type=names, metavar="NAME,NAME,..",
+                                help="models with unknowns (default block-friction-coefficient,block-stopping-time)")
+    bench_unknowns.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 10001,100001)")
     _add_run_parser(benches)
 
 
@@ -112,7 +118,7 @@ def main_bench(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.bench_command == "run":
         return _run(args, argv)
     return {"directions": _directions, "hard": _hard, "friction": _friction, "accuracy": _accuracy,
-            "scale": _scale, "pages": _pages}[args.bench_command](args)
+            "scale": _scale, "pages": _pages, "unknowns": _unknowns}[args.bench_command](args)
 
 
 def _pages(args: argparse.Namespace) -> int:
@@ -188,6 +194,14 @@ def _scale(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(scale.to_json(cells), indent=1) + "\n")
     print(scale.table(cells))
     return 1 if any(cell.error for cell in cells) else 0
+
+
+def _unknowns(args: argparse.Namespace) -> int:
+    from . import unknown_cost
+
+    print(unknown_cost.table(unknown_cost.run(args.models or unknown_cost.MODELS, args.nodes or unknown_cost.NODES,
+                                              progress=_say())))
+    return 0  # a measurement
 
 
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:

@@ -173,6 +173,57 @@ class _System:
         del blocks
         self.constraints = self._constraints()
         self.cost = functional.cost_pieces(xi) if functional.cost is not None else None
+        self.columns = self._constant_columns()
+        self.R = None if self.columns is None else self._reduction()
+
+    def _constant_columns(self) -> np.ndarray | None:
+        """Where each column of the extended unknowns goes in the KKT systems: a constant state
+        (the model's `constant_states`, x_i' = 0: an unknown T or parameter) is one unknown
+        x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states."""
+        constant = [i for i in getattr(self.f.model, "constant_states", ()) if i not in self.f.resolved]
+        if not constant:
+            return None
+        target = np.arange(self.size)
+        x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
+        target[x_cols[:, constant]] = x_cols[0, constant]
+        target[z_cols[:, constant]] = -1
+        target[Z_cols[:, constant]] = -1
+        own = target == np.arange(self.size)  # the columns that stay, in order
+        index = np.cumsum(own) - 1
+        return np.where(target >= 0, index[np.maximum(target, 0)], -1)
+
+    def _reduction(self) -> sp.csr_matrix:
+        """R (size × reduced): d = R·d_r, a constant state's x_i(t_k) all the column of x_i(t_0)."""
+        kept = self.columns >= 0
+        return sp.csr_matrix((np.ones(int(kept.sum())), (np.flatnonzero(kept), self.columns[kept])),
+                             shape=(self.size, int(self.columns.max()) + 1))
+
+    def _reduced(self, matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
+        """matrix · R (R: the columns' map of :meth:`_constant_columns`), explicit zeros kept, and
+        which rows lost every entry they had (a constant state's own recursion rows)."""
+        matrix = sp.csr_matrix(matrix)
+        rows = matrix.shape[0]
+        row_of = np.repeat(np.arange(rows), np.diff(matrix.indptr))
+        target = self.columns[matrix.indices]
+        keep = target >= 0
+        reduced = sp.csr_matrix((matrix.data[keep], (row_of[keep], target[keep])),
+                                shape=(rows, int(self.columns.max()) + 1))
+        emptied = (np.diff(matrix.indptr) > 0) & (np.bincount(row_of[keep], minlength=rows) == 0)
+        return reduced, emptied
+
+    def _solve_kkt(self, H: sp.spmatrix, C: sp.spmatrix, g: np.ndarray, rhs: np.ndarray,
+                   soft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """d and ν of the KKT system. With constant states H and g are on the reduced columns
+        (:meth:`_reduction`), C on all: C is reduced here, and d comes back on every column (a
+        constant state's x_i the same at every node, its z_i and Z_i 0)."""
+        if self.R is None:
+            return solve_kkt(H, C, g, rhs, soft, solver=self.kkt)
+        Cr, emptied = self._reduced(C)
+        live = ~emptied
+        d, nu = solve_kkt(H, Cr[live], g, rhs[live], soft[live], solver=self.kkt)
+        multipliers = np.zeros(C.shape[0])
+        multipliers[live] = nu
+        return self.R @ d, multipliers
 
     # column indices of each variable at every node: (N, width)
     def _columns(self, start: int, count: int) -> np.ndarray:
@@ -306,13 +357,17 @@ class _System:
         this one; the set this step settles on is left in `self.settled` (None when the
         Clarabel QP found the step)."""
         J, r, lam = self.jacobian, self.residual, self.penalty
-        hessian = (lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc()
         gradient = lam * (J.T @ r)
         self.settled = None
-        step = self._solve_active_set(hessian, gradient, warm)
+        if self.R is not None:  # the active-set iteration's systems on the reduced columns
+            Jr = (J @ self.R).tocsr()
+            step = self._solve_active_set((lam * (Jr.T @ Jr) + mu * sp.diags(self.R.T @ self._damping())).tocsc(),
+                                          gradient, warm)
+        else:
+            step = self._solve_active_set((lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc(), gradient, warm)
         if step is not None:
             return step
-        return self._solve_cost_qp(hessian, gradient)
+        return self._solve_cost_qp((lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc(), gradient)
 
     def _cold_start(self, values: np.ndarray) -> "ActiveSet":
         """The first guess without a previous step: the sides violated now, and each cost
@@ -395,6 +450,10 @@ class _System:
         pieces tied as `ties` say (one KKT solve), and each max-group's weights θ (N, m)."""
         lam, w, y_cols, E = self.penalty, self.f.weights, self.y_cols(), self.constraints
         A = matrix[active]
+        if self.R is not None:  # H on the reduced columns: A and g too (the tie rows are reduced with C)
+            A, gradient, g_cols = A @ self.R, self.R.T @ gradient, self.columns[y_cols]
+        else:
+            g_cols = y_cols
         if A.shape[0]:
             H = (hessian + lam * (A.T @ A)).tocsc()
             g = gradient + lam * (A.T @ values[active])
@@ -408,7 +467,7 @@ class _System:
             # through the guesses of a step (and the KKT solver its analysis): an untied row is
             # 0·d − ν = 0 (ν = 0), a tied one (∇a_q − ∇a_q₀)·d_k − εν = a_q₀ − a_q
             ref = np.argmax(tie, axis=1)  # q₀: the first piece of S
-            np.add.at(g, y_cols.ravel(), (w[:, None] * grads[every, ref]).ravel())
+            np.add.at(g, g_cols.ravel(), (w[:, None] * grads[every, ref]).ravel())
             count = tie.shape[1] - 1
             other = np.arange(count)[None, :] + (np.arange(count)[None, :] >= ref[:, None])  # (N, m − 1)
             tied = tie[every[:, None], other]
@@ -421,7 +480,7 @@ class _System:
         C = sp.vstack([E, *rows], format="csr") if rows else E
         with np.errstate(all="ignore"):
             soft = np.concatenate([np.zeros(E.shape[0]), *softness])
-            d, nu = solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft, solver=self.kkt)
+            d, nu = self._solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft)
         thetas, offset = [], E.shape[0]
         for tie, (other, tied, ref) in zip(ties, others):
             theta = np.zeros(tie.shape)

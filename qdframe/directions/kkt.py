@@ -27,6 +27,14 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   afresh, which costs a COLAMD per system and not a fill-in 10× the fresh one. (gauss-newton
   keeps C's pattern through its guesses: a cost piece that leaves the tie keeps its row,
   with zero coefficients.)
+* **Dense columns bordered.** A free start value x_i(0), an unknown parameter or a free T
+  (:mod:`qdframe.unknowns`) is a column of H with an entry in every node's υ row. Factored
+  in place, SuperLU's fill depends on whether its diagonal pivot is accepted: on a block
+  with one unknown coefficient at N = 10001 one system filled 1.1e6 entries and the next,
+  of the same pattern, 3.4e7 under a fresh COLAMD (4.5 s against 0.09 s). Such columns
+  (`_dense_columns`) are bordered instead: the rest K_RR is factored as above (banded),
+  and the |D| × |D| Schur complement K_DD − K_DR·K_RR⁻¹·K_RD is solved densely, |D| + 1
+  solves with one factorization.
 * **One column per panel.** SuperLU's panels (`PANEL_SIZE` columns updated together, a
   dense work array of panel × rows) pay on wide dense fronts; these systems' columns are
   short, and on the paper's examples a panel of one column factors faster and needs less
@@ -46,6 +54,9 @@ PIVOT_THRESHOLD = 0.1  # SuperLU's diag_pivot_thresh: a diagonal pivot within 1/
 MATCH_FRACTION = 0.5  # a constraint row is matched to a column holding at least half its largest entry
 REANALYSE_GROWTH = 1.5  # a reused order whose L + U outgrow the analysed ones by this is recomputed
 PANEL_SIZE = 1  # SuperLU's panel width (its default 10 costs time and memory on these short columns)
+DENSE_FACTOR = 10  # a Hessian column with more than this ·√size entries is bordered (_dense_columns) …
+DENSE_MIN = 1000  # … and more than this many
+MAX_BORDER = 16  # at most this many bordered columns (the densest)
 
 
 class KKTSolver:
@@ -68,33 +79,87 @@ class KKTSolver:
     def solve(self, hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarray,
               rhs: np.ndarray | None = None, soft: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         size, count = hessian.shape[0], constraints.shape[0]
-        constraints = sp.csr_matrix(constraints)
+        hessian, constraints = sp.csc_matrix(hessian), sp.csr_matrix(constraints)
+        right = np.concatenate([-gradient, np.zeros(count) if rhs is None else rhs])
+        dense = _dense_columns(hessian)
+        if not dense.size:
+            solution = self._factored(hessian, constraints, soft)(right)
+        else:
+            solution = self._bordered(hessian, constraints, soft, right, dense)
+        if not np.all(np.isfinite(solution)):
+            raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
+        return solution[:size], solution[size:]
+
+    def _bordered(self, hessian: sp.csc_matrix, constraints: sp.csr_matrix, soft: np.ndarray | None,
+                  right: np.ndarray, dense: np.ndarray) -> np.ndarray:
+        """The system with the dense columns D (and their rows) bordered: K_RR factored as any
+        system, then the Schur complement S = K_DD − K_DRK_RR⁻¹K_RD (|D| × |D|) solved densely."""
+        size, count = hessian.shape[0], constraints.shape[0]
+        position = np.full(size, -1)  # each column's place among R's (−1: in D)
+        keep = np.ones(size, dtype=bool)
+        keep[dense] = False
+        kept = np.flatnonzero(keep)
+        position[kept] = np.arange(kept.size)
+        border = np.full(size, -1)
+        border[dense] = np.arange(dense.size)
+        h = hessian.tocoo()
+        row, col = position[h.row], position[h.col]
+        inside = (row >= 0) & (col >= 0)
+        h_rr = sp.csc_matrix((h.data[inside], (row[inside], col[inside])), shape=(kept.size, kept.size))
+        coupling = np.zeros((kept.size + count, dense.size))  # K_RD: H's rows of R, then C's rows
+        across = (row >= 0) & (col < 0)
+        np.add.at(coupling, (row[across], border[h.col[across]]), h.data[across])
+        schur = np.zeros((dense.size, dense.size))
+        corner = (row < 0) & (col < 0)
+        np.add.at(schur, (border[h.row[corner]], border[h.col[corner]]), h.data[corner])
+        c = constraints.tocoo()
+        c_col = position[c.col]
+        inner_c = c_col >= 0
+        c_rr = sp.csr_matrix((c.data[inner_c], (c.row[inner_c], c_col[inner_c])), shape=(count, kept.size))
+        np.add.at(coupling, (kept.size + c.row[~inner_c], border[c.col[~inner_c]]), c.data[~inner_c])
+        inner = np.concatenate([kept, size + np.arange(count)])  # R's rows of K
+        solve = self._factored(h_rr, c_rr, soft)
+        both = solve(np.column_stack([right[inner], coupling]))
+        first, through = both[:, 0], both[:, 1:]
+        schur -= coupling.T @ through
+        try:
+            border = np.linalg.solve(schur, right[dense] - coupling.T @ first)
+        except np.linalg.LinAlgError as exc:
+            raise BackendError(f"direction 'gauss-newton': the bordered KKT solve failed ({exc})") from exc
+        solution = np.empty(right.size)
+        solution[inner] = first - through @ border
+        solution[dense] = border
+        return solution
+
+    def _factored(self, hessian: sp.csc_matrix, constraints: sp.csr_matrix, soft: np.ndarray | None):
+        """K factored (the analysis reused where it applies): a function of right-hand sides
+        (one, or one per column) returning K⁻¹·right."""
+        size = hessian.shape[0]
         if not self._same(size, constraints):
             self._key = (size, constraints.indptr.copy(), constraints.indices.copy())
             self._rows, self._order = _matching(constraints, size), None
-        right = np.concatenate([-gradient, np.zeros(count) if rhs is None else rhs])
         rows = self._rows  # an involution: each matched pair trades places, so it is its own inverse
         order = self._order
         kkt = _assemble(hessian, constraints, rows, order, soft)
+        self.factorizations += 1
         if order is None:  # the analysis: SuperLU's COLAMD on the matched matrix, kept for later systems
             factor = _factor(kkt, "COLAMD")
             self._order = np.argsort(factor.perm_c) if self._reuse else None
             self._factor_nnz = factor.nnz  # L + U (not .L, .U: those build copies)
             self.analyses += 1
-            solution = factor.solve(right[rows])
-        else:
-            factor = _factor(kkt, "NATURAL")
-            if factor.nnz > REANALYSE_GROWTH * self._factor_nnz:
-                # the pivots left the analysed order (the values, not the pattern, moved): reusing it
-                # again would fill in as much, so every later system of this solve is analysed afresh
-                self._order, self._reuse = None, False
-            solution = np.empty(size + count)
+            return lambda right: factor.solve(right[rows])
+        factor = _factor(kkt, "NATURAL")
+        if factor.nnz > REANALYSE_GROWTH * self._factor_nnz:
+            # the pivots left the analysed order (the values, not the pattern, moved): reusing it
+            # again would fill in as much, so every later system of this solve is analysed afresh
+            self._order, self._reuse = None, False
+
+        def solve(right: np.ndarray) -> np.ndarray:
+            solution = np.empty(right.shape)
             solution[order] = factor.solve(right[rows[order]])
-        self.factorizations += 1
-        del factor, kkt
-        if not np.all(np.isfinite(solution)):
-            raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
-        return solution[:size], solution[size:]
+            return solution
+
+        return solve
 
     def _same(self, size: int, constraints: sp.csr_matrix) -> bool:
         """Whether the analysis at hand is of this shape and constraint pattern."""
@@ -113,6 +178,17 @@ def solve_kkt(hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarr
     soft: ε ≥ 0 per constraint row, the block −diag(ε) in place of 0 (C d − εν = c): a row
     with ε > 0 holds to ε·ν, and rows that depend on others no longer make K singular."""
     return (solver or KKTSolver()).solve(hessian, constraints, gradient, rhs, soft)
+
+
+def _dense_columns(hessian: sp.csc_matrix) -> np.ndarray:
+    """The columns of H with more than DENSE_FACTOR·√size entries (at most MAX_BORDER, the
+    densest): a free start value x_i(0), a parameter or a free T, which every node's υ row
+    holds. Factored in place they make SuperLU's fill depend on its pivots (the diagonal
+    rejected once, the fill can grow 30×); bordered, the rest factors as a banded system."""
+    counts = np.diff(hessian.indptr)
+    limit = max(DENSE_MIN, DENSE_FACTOR * np.sqrt(hessian.shape[0]))
+    dense = np.flatnonzero(counts > limit)
+    return np.sort(dense[np.argsort(counts[dense])[::-1][:MAX_BORDER]])
 
 
 def _matching(constraints: sp.csr_matrix, size: int) -> np.ndarray:
