@@ -4,7 +4,9 @@ Two certificates, each for the problems it can judge (:func:`certificate_for`):
 
 **bisection** — where the problem has one solution. The same problem is solved again on
 the bisected mesh (every interval halved: :meth:`~qdframe.grid.Grid.bisected`), from the
-result interpolated, by gauss-newton. With x_h and x_{h/2} the two discrete solutions and
+result interpolated, by gauss-newton, and the two are compared at the result's points in
+what the user is given (:meth:`~qdframe.model.InclusionModel.observed`: x, and with a free
+T or parameters the T and p found, at each solve's own t = s·T). With x_h and x_{h/2} the two discrete solutions and
 p ≥ 1 the order, x_h − x* ≈ (x_h − x_{h/2})·2^p/(2^p − 1), a factor ≤ 2 for every p ≥ 1;
 the estimate takes 2.5 (p = 1 with a quarter's margin for the higher-order terms on
 coarse grids), plus what the two discrete solutions cannot see, the result's own defects:
@@ -132,8 +134,10 @@ def bisection(functional: Functional, result: SolveResult, resolve: Resolve) -> 
     if companion.status != "solved":
         return Estimate(None, None, BISECTION, f"the solve on the bisected grid ({companion.nodes} nodes) ended "
                         f"{companion.status}", companion)
-    grid = functional.grid
-    difference = dense(finer.grid, companion.x, grid.t) - result.x  # (N, n)
+    grid, model = functional.grid, functional.model
+    # at the user's times and in what the user is given (with a free T: t = s·T, each solve its own T)
+    times = grid.t * model.time_scale(result.x) / model.time_scale(companion.x)
+    difference = model.observed(dense(finer.grid, companion.x, times)) - model.observed(result.x)  # (N, ·)
     value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + defects(functional, result)
     return Estimate(value, _local(grid, difference, ESTIMATE_FACTOR), BISECTION, "", companion)
 

@@ -358,6 +358,15 @@ class InclusionModel(ABC):
         """A known solution x(t) (N, n) for the default boundary data, or None."""
         return None
 
+    def time_scale(self, x: np.ndarray) -> float:
+        """The user's time of the solver's: t = s·time_scale(x) (1 but where T is found)."""
+        return 1.0
+
+    def observed(self, x: np.ndarray) -> np.ndarray:
+        """What the user is given of a trajectory's points (N, ·), which an error estimate
+        compares: x itself (:mod:`qdframe.unknowns`: x, then the T and parameters found)."""
+        return x
+
     def _check_blocks(self) -> None:
         from .registry import plugin_code
 

@@ -20,10 +20,11 @@ functional (paper (3.13)–(3.17)) through F alone, and every scheme, direction,
 error estimate and certificate applies unchanged.
 
 :func:`unwrap` maps the result back: t = s·T, x = X, z = X'/T, ``result.T`` and
-``result.parameters``. The estimate made on the scaled problem bounds max_s |X − X*| over
-X and the σ's; at the user's times t_k = s_k·T the error is at most
-est·(1 + max_s |X'(s)|) to first order (the σ_T error |ΔT|/T moves every point by
-|ΔT|/T·s·|X'|), which is what ``error_estimate`` reports.
+``result.parameters``. The bisection estimate compares the two solves in what the user is
+given (:meth:`Unknowns.observed`: x at the user's times t = s·T, each solve with its own
+T, then T and p), so it covers T, p and x at those times. A replay keeps the T found, so
+its estimate, of X and the σ's, is multiplied by 1 + max_s |X'(s)|: to first order an
+error ΔT moves every point by |ΔT|/T·s·|X'|.
 """
 
 from __future__ import annotations
@@ -349,6 +350,15 @@ class Unknowns(InclusionModel):
     def initial_controls(self, t: np.ndarray) -> np.ndarray:
         return self.inner.initial_controls(t * self.T0 if self.scaled else t)
 
+    def time_scale(self, x: np.ndarray) -> float:
+        return self.found(x)[0] if self.scaled else 1.0
+
+    def observed(self, x: np.ndarray) -> np.ndarray:
+        """x, then T (when found) and the parameters, each column the same at every point."""
+        T, parameters = self.found(x)
+        found = ([T] if self.scaled else []) + ([] if self.fixed else list(parameters.values()))
+        return np.concatenate([x[:, : self.n], np.tile(found, (x.shape[0], 1))], axis=1)
+
     def found(self, x: np.ndarray) -> tuple[float, dict[str, float]]:
         """T and the parameters of a scaled trajectory (the σ columns' means: constant on a solution)."""
         sigma = np.mean(x[:, self.n:], axis=0)
@@ -365,8 +375,8 @@ def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
     factor = T if wrapper.scaled else 1.0
     speed = float(np.max(np.abs(result.z[:, :n]))) if result.z.size else 0.0
     estimate = result.error_estimate
-    if estimate is not None:
-        estimate = estimate * (1.0 + speed) if wrapper.scaled else estimate
+    if estimate is not None and wrapper.scaled and result.certificate != "bisection":
+        estimate *= 1.0 + speed  # a replay keeps T: what an error ΔT/T moves the points by (module docstring)
     set_bounds = [None if b is None else {**b, "lower": b["lower"] / factor, "upper": b["upper"] / factor}
                   for b in result.set_bounds if b is None or b["coordinate"] < n]
     t, x = np.asarray(result.t, float) * factor, result.x[:, :n]
