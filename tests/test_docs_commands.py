@@ -245,14 +245,15 @@ def _friction_suite(out: Outcome) -> None:
     """README: every problem of the suite has its discrete problem solved at N = 101, 1001,
     10001 (`uncertified`: a fixed grid is not meant to meet 1e-6) with a strict residual ≤ 1e-8."""
     rows = _table(out.stdout)
-    assert len(rows) == 24
+    assert len(rows) == 30
     for row in rows:
         assert _converged(row["status"]) and _number(row["strict residual"]) <= 1e-8, row
 
 
 SOLVED_BY = {  # README, "Which scheme for friction and sliding": (scheme, N) whose discrete problem is solved, and not
     scheme: {n: {"block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
-                 "coulomb-block", "two-surface-sliding"} | ({"sliding-mode-terminal"}
+                 "coulomb-block", "two-surface-sliding", "block-stopping-time", "block-friction-coefficient"}
+             | ({"sliding-mode-terminal"}
                                                          if (scheme, n) == ("radau-iia", 1001) else set())
              for n in (101, 1001)}
     for scheme in ("radau-iia", "trapezoid")
@@ -265,7 +266,7 @@ NOT_SOLVED_BY = {
 
 def _friction_schemes(out: Outcome) -> None:
     rows = _table(out.stdout)
-    assert len(rows) == 32
+    assert len(rows) == 40
     for row in rows:
         scheme, nodes, model = row["scheme"], int(row["N"]), row["model"]
         if model in SOLVED_BY.get(scheme, {}).get(nodes, ()):

@@ -20,6 +20,7 @@ from ..progress import bar
 SUITE = (
     "block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
     "two-surface-sliding", "coulomb-block", "sliding-mode-terminal",
+    "block-stopping-time", "block-friction-coefficient",  # T or a coefficient found with x
 )
 
 

@@ -13,15 +13,16 @@ from qdframe.bench.friction import SUITE, run_suite
 from qdframe.models.friction import FRICTION_MODELS
 
 NODES = (101, 1001, 10001)
+SOLVED = SUITE  # (relay-period, whose fixed implicit-Euler grids fail, is not in it: README, "Known failures")
 
 
 @pytest.fixture(scope="module")
 def results():
     # the discrete problems and their exact errors: no estimate (a replay on 10001 points is a benchmark's cost)
-    return {(name, nodes): qdframe.solve(name, nodes=nodes, estimate=False) for name in SUITE for nodes in NODES}
+    return {(name, nodes): qdframe.solve(name, nodes=nodes, estimate=False) for name in SOLVED for nodes in NODES}
 
 
-@pytest.mark.parametrize("name", SUITE)
+@pytest.mark.parametrize("name", SOLVED)
 def test_solved_strictly_at_every_grid(results, name):
     for nodes in NODES:
         result = results[name, nodes]
@@ -32,7 +33,7 @@ def test_solved_strictly_at_every_grid(results, name):
         assert np.array_equal(result.x[0, given], qdframe.load_model(name).x0[given])
 
 
-@pytest.mark.parametrize("name", [n for n in SUITE if n != "sliding-mode-terminal"])
+@pytest.mark.parametrize("name", [n for n in SOLVED if n != "sliding-mode-terminal"])
 def test_error_against_the_exact_solution_is_first_order(results, name):
     errors = [results[name, nodes].solution_error for nodes in NODES]
     assert errors[0] <= 0.1  # at h ≈ 0.02–0.03
