@@ -56,6 +56,9 @@ NOT_RUN = {
     # every path and paper model at N = 1001, 10001, 100001: 3 min 22 s on the idle 2-core machine (2026-11-25);
     # the docs' smaller `bench scale` command runs here, and tests/bench/test_bench_scale.py
     "qdframe bench scale": "a 4-minute measurement",
+    # 4 models × 2 grids up to N = 100001: 28 s on the idle 2-core machine (2026-11-26); the docs'
+    # `--nodes 1001` variant runs here, and tests/bench/test_unknown_cost.py runs its code
+    "qdframe bench unknowns": "a 30-second measurement",
     # the same at N = 100001 alone, each cell in three processes: 8 min 35 s (2026-11-25)
     "qdframe bench scale --nodes 100001 --repeat 3": "a 9-minute measurement",
     # paper-7.2 alone at N = 100001, both paths, three processes each: 2 min 5 s (2026-11-25)

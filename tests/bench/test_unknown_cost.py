@@ -1,0 +1,25 @@
+"""`qdframe bench unknowns`: seconds per iteration with T or p unknown against fixed."""
+
+from __future__ import annotations
+
+from qdframe.bench.unknown_cost import per_iteration, run, table
+from qdframe.descent import load_model
+from qdframe.unknowns import Unknowns, restated
+
+
+def test_fixed_and_unknown_forms_of_one_model():
+    """The fixed form has the model's own columns; the unknown one adds μ's x and z."""
+    model = load_model("block-friction-coefficient")
+    fixed = Unknowns(restated(model, False, None), fixed=True)
+    assert fixed.state_names == ("p", "v") and fixed.n_states == 2
+    assert Unknowns(model).state_names == ("p", "v", "mu")
+    seconds, width = per_iteration(fixed, 101, iterations=3)
+    assert seconds > 0 and width == 5
+
+
+def test_run_and_table():
+    cells = run(("block-stopping-time",), (201,), iterations=3)
+    (cell,) = cells
+    assert cell.columns == (5, 7) and cell.fixed > 0 and cell.unknown > 0
+    text = table(cells)
+    assert "block-stopping-time | 201 |" in text and "5 → 7" in text
