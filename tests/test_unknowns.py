@@ -235,3 +235,21 @@ def test_command_line_free_T_and_parameter(tmp_path, capsys):
         main(["solve", "--help"])
     helped = capsys.readouterr().out
     assert "--free-T" in helped and "--parameter" in helped
+
+
+def test_gauss_newton_keeps_a_constant_state_one_unknown():
+    """The step moves T (and p) by one amount at every node and never their z: the constant
+    states are one unknown in the KKT systems (qdframe/directions/gauss_newton.py)."""
+    from qdframe.descent import make_direction
+    from qdframe.functional import Functional
+    from qdframe.grid import Grid
+
+    model = Unknowns(BlockFrictionCoefficient())
+    assert model.constant_states == (2,)
+    functional = Functional(model, Grid(model.T, 301, "implicit-euler"))
+    xi = functional.initial_point()
+    solver = make_direction("gauss-newton")
+    solver.start(functional)
+    step = solver.compute(functional, xi, 1e-3).step
+    assert np.ptp(step[:, 2]) == 0.0 and abs(step[0, 2]) > 0  # σ_μ moves, the same everywhere
+    assert np.all(step[:, 3 + 2] == 0.0)  # its z stays 0

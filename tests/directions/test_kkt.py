@@ -125,3 +125,29 @@ def test_an_order_that_filled_in_is_not_reused_again():
     for _ in range(3):
         solver.solve(hessian, constraints, gradient, rhs)
     assert solver.analyses == 4  # each of the three analysed afresh
+
+
+def test_dense_columns_are_bordered_and_solve_the_same_system():
+    """A chain with one column coupled to every node (a free start value, an unknown parameter):
+    it is detected as dense, bordered, and d and ν equal a fresh sparse LU of the whole system."""
+    from qdframe.directions.kkt import _dense_columns
+
+    rng = np.random.default_rng(3)
+    nodes = 3000
+    hessian, constraints, gradient, rhs = chain_system(rng, nodes, singular=False)
+    size = hessian.shape[0]
+    column = np.zeros(size)
+    column[1::3] = rng.normal(size=nodes) * 0.01  # every node's z couples to x_0
+    column[0] = 0.0
+    coupling = sp.csr_matrix(column[:, None])
+    hessian = (hessian + sp.hstack([coupling, sp.csr_matrix((size, size - 1))])
+               + sp.vstack([coupling.T, sp.csr_matrix((size - 1, size))])).tocsc()
+    constraints = constraints[1:]  # x_0 free: only Z_0 = 0 and the recursion
+    rhs = rhs[1:]
+    hessian = (hessian + 10 * sp.eye(size)).tocsc()  # positive definite
+    assert list(_dense_columns(hessian)) == [0]
+    d, nu = solve_kkt(hessian, constraints, gradient, rhs)
+    K = sp.bmat([[hessian, constraints.T], [constraints, None]], format="csc")
+    reference = spla.spsolve(K, np.concatenate([-gradient, rhs]))
+    assert np.allclose(np.concatenate([d, nu]), reference, rtol=1e-9, atol=1e-10)
+    assert np.allclose(hessian @ d + constraints.T @ nu, -gradient, atol=1e-9)
