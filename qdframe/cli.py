@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import traceback
 import warnings
@@ -170,6 +171,9 @@ def _main(argv: list[str], debug: bool) -> int:
         if args.command == "check-model":
             return main_check(args)
         return _solve(args)
+    except BrokenPipeError:  # `qdframe solve … | head`: the reader has what it wanted
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error when Python flushes stdout
+        return 0
     except _UsageError as exc:
         return _error(str(exc), EXIT_USAGE, debug)
     except InputError as exc:

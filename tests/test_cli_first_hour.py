@@ -67,3 +67,14 @@ def test_json_to_stdout_keeps_stdout_clean(capsys):
     out, err = capsys.readouterr()
     assert json.loads(out)["model"] == "paper-7.2"  # stdout is the JSON alone
     assert "status" in err  # the summary went to stderr
+
+
+def test_a_reader_that_stops_early_is_no_error():
+    """`qdframe solve … | head -1` (here `| true`, which reads nothing: the pipe is closed before
+    the summary is written): the closed pipe is not reported as an unexpected error."""
+    import subprocess
+    import sys
+
+    done = subprocess.run(f"{sys.executable} -m qdframe.cli solve block-stop-stick --nodes 101 | true",
+                          shell=True, capture_output=True, text=True)
+    assert done.returncode == 0 and done.stderr == ""
