@@ -30,6 +30,8 @@ from .switches import switch_times
 
 SWITCH_SETTLED = 1e-12  # relative to T: a switch time that moves less between rounds has settled
 SWITCH_ROUNDS = 6  # at most this many re-solves to settle the switch times on one mesh
+SECANT_MIN = 0.2  # a pin's secant step is taken where the located time's slope m has |1 − m| above this …
+SECANT_REACH = 10.0  # … and the step is at most this many times the plain re-pinning's
 REFINE_MARGIN = 0.85  # a refined mesh aims at this fraction of the accuracy
 MONITOR_FLOOR = 0.05  # the error density never falls below this fraction of its mean
 PIN_CROSSINGS = True  # crossings too: Radau IIA keeps its order across them (left out, the pendulum with pivot friction was not solved)
@@ -149,29 +151,46 @@ def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 
 def settle_switches(functional: Functional, result: SolveResult, resolve: Resolve) -> tuple[Functional, SolveResult]:
-    """Move mesh points onto the switch times and re-solve until the times settle (or stop
-    moving closer); a re-solve that does not end `solved` is dropped, and the last solved
-    mesh and solution are returned."""
+    """Move mesh points onto the switch times and re-solve until the times settle (the times
+    located on the solution are the pinned ones, or stop moving closer); a re-solve that
+    does not end `solved` is dropped, and the last solved mesh and solution are returned.
+
+    Each round pins the located times g(p) of the last pins p; where two rounds give a
+    slope m = Δg/Δp of a switch far from 1, the next pin is the secant's root
+    p + (g − p)/(1 − m) instead. A switch's time can answer its pin like a mirror (m ≈ −1:
+    with T free, a crossing pinned early lengthens the orbit, and the crossing is located
+    as late, round after round), where plain re-pinning never settles."""
     times = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
+    pins = np.asarray(functional.grid.switches, dtype=float)
+    before: tuple[np.ndarray, np.ndarray] | None = None  # (pins, located) of the round before
     change = np.inf
     for _ in range(SWITCH_ROUNDS):
         if times.size == 0 or result.status != "solved":
             break
-        tau = pin(functional.grid.mesh_times, times)
+        target = times
+        if before is not None and before[0].size == pins.size == times.size:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope = (times - before[1]) / (pins - before[0])
+                secant = pins + (times - pins) / (1.0 - slope)
+            usable = np.isfinite(secant) & (np.abs(1.0 - slope) > SECANT_MIN) & (
+                np.abs(secant - pins) <= SECANT_REACH * np.abs(times - pins))
+            target = np.where(usable, secant, times)
+        tau = pin(functional.grid.mesh_times, target)
         if np.array_equal(tau, functional.grid.mesh_times):
             break
-        pinned = like(functional, Grid.from_mesh(tau, functional.grid.scheme, times))
+        pinned = like(functional, Grid.from_mesh(tau, functional.grid.scheme, target))
         attempt = resolve(pinned, result)
         if attempt.status != "solved":  # keep the mesh and solution that were solved: the switches stay where they are
             break
         functional, result = pinned, attempt
         moved = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)
-        if moved.size != times.size:
-            times = moved
+        if moved.size != target.size:
+            times, pins, before = moved, np.asarray(target), None
             continue
-        previous, change = change, float(np.max(np.abs(moved - times), initial=0.0))
-        times = moved
-        # settled, or no longer settling (the times move back and forth at the solve's own accuracy)
+        before = (pins, times) if pins.size == times.size else None
+        pins, times = np.asarray(target), moved
+        previous, change = change, float(np.max(np.abs(moved - target), initial=0.0))
+        # settled (the located times are the pinned ones), or no longer settling
         if change <= SWITCH_SETTLED * functional.grid.T or change > 0.5 * previous:
             break
     return functional, result

@@ -12,11 +12,15 @@ the estimate takes 2.5 (p = 1 with a quarter's margin for the higher-order terms
 coarse grids), plus what the two discrete solutions cannot see, the result's own defects:
 
     2.5·max_k |x_h(t_k) − x_{h/2}(t_k)| + boundary error + consistency error
-        + T·(inclusion residual + max a·selection residual) + 64ε·max(1, |x|).
+        + T·(inclusion residual + max a·selection residual) + 64ε·max(1, |x|)
+        + max_j |pinned_j − located_j|·2·max|z|.
 
 The defects matter near the solver's tolerance: a trajectory that misses x_j(T) = xT_j by
 b is at least b from every solution there, and a velocity h outside F moves x by up to
-T·h over the horizon.
+T·h over the horizon. The last term is for a switch pinned on a mesh point
+(:func:`qdframe.adaptive.settle_switches`) where the solution does not switch: both solves
+share the pin, so their difference cannot show it; a selection held a time δ too long
+moves x by up to δ times the velocity's jump.
 
 **replay** — where the solutions form a set (a free input, a set-valued right-hand side)
 or the problem is an initial-value problem. The trajectory's own choices are replayed
@@ -138,8 +142,27 @@ def bisection(functional: Functional, result: SolveResult, resolve: Resolve) -> 
     # at the user's times and in what the user is given (with a free T: t = s·T, each solve its own T)
     times = grid.t * model.time_scale(result.x) / model.time_scale(companion.x)
     difference = model.observed(dense(finer.grid, companion.x, times)) - model.observed(result.x)  # (N, ·)
-    value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + defects(functional, result)
+    value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + defects(functional, result) \
+        + misplaced_switches(functional, result)
     return Estimate(value, _local(grid, difference, ESTIMATE_FACTOR), BISECTION, "", companion)
+
+
+def misplaced_switches(functional: Functional, result: SolveResult) -> float:
+    """What pinned switches that are not where the solution switches can move it by, which a
+    solve on the bisected mesh, pinned at the same points, cannot see: the largest distance
+    between a pinned time and the located one, times the largest jump the velocity can make
+    (2·max|z|). Zero where the mesh has no pins or the switches have settled on them."""
+    from .switches import switch_times
+
+    pins = np.asarray(functional.grid.switches, dtype=float)
+    if not pins.size or not functional.p:
+        return 0.0
+    located = switch_times(functional, functional.pack(result.x, result.z, result.u, result.selections),
+                           crossings=True, merge=False)
+    if located.size == 0:
+        return 0.0
+    distance = float(np.max(np.min(np.abs(pins[:, None] - located[None, :]), axis=1)))
+    return distance * 2.0 * float(np.max(np.abs(result.z)))
 
 
 def defects(functional: Functional, result: SolveResult) -> float:
