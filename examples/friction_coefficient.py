@@ -40,6 +40,7 @@ def main() -> None:
     print(f"{result.status}: mu = {mu:.12f} (exact 2, |mu − 2| = {abs(mu - 2):.1e}), stops at t = "
           f"{result.switch_times[0]:.9f}, error estimate {result.error_estimate:.1e}")
     result.plot("friction_coefficient.png")
+    print("wrote friction_coefficient.png")
 
 
 if __name__ == "__main__":

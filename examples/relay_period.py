@@ -39,6 +39,7 @@ def main() -> None:
         print(f"guess T = {guess}: {result.status}, T = {result.T:.12f} (|T − 4√2| = {abs(result.T - exact):.1e}), "
               f"crossings at t = {', '.join(f'{t:.6f}' for t in result.switch_times)}")
     result.plot("relay_period.png")
+    print("wrote relay_period.png")
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ def main() -> None:
     print(f"{result.status}: T = {result.T:.12f} (exact 0.5, |T − T*| = {abs(result.T - 0.5):.1e}), "
           f"error estimate {result.error_estimate:.1e} on {result.nodes} points")
     result.plot("stopping_time.png")
+    print("wrote stopping_time.png")
 
 
 if __name__ == "__main__":

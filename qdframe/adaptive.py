@@ -39,9 +39,10 @@ FALLBACK_SCHEME = "radau-iia"  # where the first solve is not solved: this schem
 FALLBACK_NODES = 101  # … on this many uniform points
 
 
-def tolerance(accuracy: float, result: SolveResult) -> float:
-    """The absolute target of an estimate: accuracy·max(1, max|x|)."""
-    return accuracy * max(1.0, float(np.max(np.abs(result.x))))
+def tolerance(accuracy: float, result: SolveResult, functional: Functional) -> float:
+    """The absolute target of an estimate: accuracy·max(1, max|x|) (the model's
+    :meth:`~qdframe.model.InclusionModel.accuracy_scale`)."""
+    return accuracy * functional.model.accuracy_scale(result.x)
 
 
 @dataclasses.dataclass
@@ -72,7 +73,7 @@ def on_fixed_grid(functional: Functional, result: SolveResult, companion: Resolv
     if not wanted:
         return Certified(functional, result, Estimate(None, None, detail="no error estimate: estimate=False"))
     spent: list[float] = []
-    found = _timed(functional, result, companion, certificate, spent, tolerance(accuracy, result))
+    found = _timed(functional, result, companion, certificate, spent, tolerance(accuracy, result, functional))
     return Certified(functional, result, found, seconds=sum(spent))
 
 
@@ -102,7 +103,7 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
     note, spent = "", []
     while result.status == "solved":
         functional, result = settle_switches(functional, result, own)
-        target = tolerance(accuracy, result)
+        target = tolerance(accuracy, result, functional)
         found = _timed(functional, result, companion, certificate, spent, target)
         if found.value is None:
             note = f"no error estimate on {functional.grid.nodes} points: {found.detail}"

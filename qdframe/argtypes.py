@@ -115,8 +115,10 @@ def parameter_guess(text: str) -> tuple[str, float]:
         number = float(value)
     except ValueError:
         number = float("nan")
-    if not sep or not key.strip().isidentifier() or not np.isfinite(number):
+    if not sep or not key.strip().isidentifier():
         raise argparse.ArgumentTypeError(f"expected NAME=GUESS like mu=1.5, got {text!r}")
+    if not np.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected NAME=GUESS with a finite number as the guess, got {text!r}")
     return key.strip(), number
 
 

@@ -348,7 +348,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
         else np.zeros(0)
     note = outcome.note
     if solved:
-        bound = adaptive.tolerance(target, result)
+        bound = adaptive.tolerance(target, result, functional)
         if found.value is None:
             result.status = Status.UNCERTIFIED
             reason = found.detail or "no error estimate"

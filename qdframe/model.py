@@ -261,8 +261,8 @@ class InclusionModel(ABC):
             self.free_T = bool(free_T)
         self.T_bounds = _bounds("T_bounds", self.T_bounds)
         if self.free_T and not (0 <= self.T_bounds[0] < self.T < self.T_bounds[1]):
-            raise InputError("T", f"a starting guess inside T_bounds ({self.T_bounds[0]:g}, {self.T_bounds[1]:g}), "
-                                  "0 ≤ lo", self.T)
+            raise InputError("T", f"a starting guess of the free T inside T_bounds ({self.T_bounds[0]:g}, "
+                                  f"{self.T_bounds[1]:g}) (with 0 ≤ lo)", self.T)
         self.parameters = self._parameter_guesses(parameters)
         self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n, free=True)
         if end_values is not None and len(end_values) == n != len(self.end_indices):
@@ -357,6 +357,10 @@ class InclusionModel(ABC):
     def exact_solution(self, t: np.ndarray) -> np.ndarray | None:
         """A known solution x(t) (N, n) for the default boundary data, or None."""
         return None
+
+    def accuracy_scale(self, x: np.ndarray) -> float:
+        """max(1, max|x|): what an accuracy target is relative to (the states the user is given)."""
+        return max(1.0, float(np.max(np.abs(x))))
 
     def time_scale(self, x: np.ndarray) -> float:
         """The user's time of the solver's: t = s·time_scale(x) (1 but where T is found)."""

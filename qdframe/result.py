@@ -133,7 +133,7 @@ class SolveResult:
     def to_dataframe(self) -> "pandas.DataFrame":
         """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
         per state (the model's state names), z as x1' …, then u and λ where the model has them
-        named as the model names them), with attrs model, status, T and ``parameter_<name>``. Needs pandas: ``pip install 'qdframe[frames]'``."""
+        named as the model names them), with attrs model, status, T, free_T and ``parameter_<name>``. Needs pandas: ``pip install 'qdframe[frames]'``."""
         pd = _optional("pandas", "to_dataframe")
         names = self._columns()
         blocks = [self.x, self.z] + [part for part in (self.u, self.selections) if part is not None]
@@ -141,6 +141,7 @@ class SolveResult:
         index = pd.Index(np.asarray(self.t, dtype=float), name="t")
         frame = pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
         frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),
+                            "free_T": int(bool(self.options.get("free_T"))),
                             **{f"parameter_{name}": float(value) for name, value in self.parameters.items()}})
         return frame
 

@@ -107,6 +107,9 @@ class Unknowns(InclusionModel):
     comparison of ``qdframe bench unknowns`` use."""
 
     def __init__(self, model: InclusionModel, fixed: bool = False) -> None:
+        if model.free_T and not (len(model.end_indices) or len(model.periodic)):
+            raise InputError("free_T", "a model with an end value or a periodic condition that determines T "
+                                       "(without one every T is a solution)", True)
         self.inner = model
         self.fixed = bool(fixed)
         self.values = np.asarray(model.parameters, dtype=float)
@@ -138,16 +141,20 @@ class Unknowns(InclusionModel):
 
     def _sweep(self) -> float:
         """A better first T where x(0) is given: the motion from x(0) with the guessed p,
-        integrated once over [T/2, T·2^k], and the T there that misses the end and periodic
-        conditions least (of the near-best, the nearest to the guess); k = 1, 2, … up to
-        SWEEP_OCTAVES until one misses by less than SWEEP_NEAR·max(1, |x|). A guess of a
+        integrated once over [T/2^k, T·2^k] ([T/2, T·2^k] for a period), and the T there that
+        misses the end and periodic conditions least (of the near-best, the nearest to the
+        guess); k = 1, 2, … up to SWEEP_OCTAVES until one misses by less than
+        SWEEP_NEAR·max(1, |x|). A guess of a
         period a quarter off can sit where the misses are stationary (a corner of the relay's
         orbit), and shooting from there does not move. The guess where the motion fails."""
         if not self.end_indices and not self.periodic:
             return self.T0
         best = self.T0
         for octave in range(1, SWEEP_OCTAVES + 1):
-            found = self._swept(self.T0 / 2, self.T0 * 2.0**octave)
+            # an end condition: downwards too (a stop before the guess); a period: not towards T = 0,
+            # where a constant x is periodic
+            lowest = self.T0 / 2 if self.periodic else self.T0 / 2.0**octave
+            found = self._swept(lowest, self.T0 * 2.0**octave)
             if found is None:
                 return best
             best, near = found
@@ -349,6 +356,9 @@ class Unknowns(InclusionModel):
 
     def initial_controls(self, t: np.ndarray) -> np.ndarray:
         return self.inner.initial_controls(t * self.T0 if self.scaled else t)
+
+    def accuracy_scale(self, x: np.ndarray) -> float:
+        return max(1.0, float(np.max(np.abs(x[:, : self.n]))))  # the model's states, not the σ's
 
     def time_scale(self, x: np.ndarray) -> float:
         return self.found(x)[0] if self.scaled else 1.0

@@ -287,3 +287,27 @@ def test_crossings_pinned_with_T_free_settle_and_the_estimate_holds():
     assert result.status == "solved", result.message
     assert abs(result.T - 4 * np.pi / 3) <= 1e-6 and error <= 1e-6 * 2
     assert np.allclose(result.switch_times, [np.pi / 3, np.pi], atol=1e-6)
+
+
+def test_a_free_T_needs_a_condition_and_is_found_from_either_side():
+    """Without an end value or a periodic condition every T would do: refused. A stopping
+    time guessed 6× too long, past the stop, is found (the start's sweep looks downwards)."""
+    from qdframe.models.user_friction import RelayOscillator
+
+    with pytest.raises(InputError) as caught:
+        qdframe.solve(RelayOscillator(), free_T=True)
+    assert caught.value.field == "free_T"
+
+    class Thrown(SetModel):
+        name = "thrown"
+        state_names = "p v"
+        default_x0 = (0.0, 3.0)
+        default_xT = {"p": 1.0}
+        default_T = 3.0  # stops at t = 1 (p = 1.5); p = 1 at T* = 1 − √3/3
+        free_T = True
+
+        def sets(self, p, v):
+            return {p: v, v: -3 * Sgn(v)}
+
+    result = qdframe.solve(Thrown())
+    assert result.solved and abs(result.T - (1 - np.sqrt(3) / 3)) <= 1e-6

@@ -95,6 +95,9 @@ class SetModel(InclusionModel):
                 try:
                     sets = self.sets(*args)
                 except TypeError as exc:  # np.sin(θ), math.exp(θ): functions of numbers, given a SymPy symbol
+                    if "positional argument" in str(exc):  # a signature without the parameters (or controls)
+                        raise InputError(f"{cls.__name__}.sets()", "a method of the states, then the parameters, then "
+                                         f"the controls: sets(self, {', '.join(map(str, args))})", str(exc)) from exc
                     if not any(text in str(exc) for text in NUMERIC_ON_SYMBOL):
                         raise
                     raise InputError(f"{cls.__name__}.sets()", "formulas of SymPy functions of the symbols "
