@@ -60,6 +60,7 @@ import numpy as np
 from .functional import Functional
 from .grid import Grid
 from .result import SolveResult
+from .switches import switch_times
 
 BISECTION, REPLAY = "bisection", "replay"
 CERTIFICATES = (BISECTION, REPLAY)
@@ -152,8 +153,6 @@ def misplaced_switches(functional: Functional, result: SolveResult) -> float:
     solve on the bisected mesh, pinned at the same points, cannot see: the largest distance
     between a pinned time and the located one, times the largest jump the velocity can make
     (2·max|z|). Zero where the mesh has no pins or the switches have settled on them."""
-    from .switches import switch_times
-
     pins = np.asarray(functional.grid.switches, dtype=float)
     if not pins.size or not functional.p:
         return 0.0

@@ -131,7 +131,8 @@ class Unknowns(InclusionModel):
         self.periodic = tuple(model.periodic)
         self.n, self.q = n, q
         self.T0 = float(model.T)
-        self._wrapped: dict[int, Callable] = {}
+        self._wrapped: dict[int, Callable] = {}  # id of the model's callable → its wrapper
+        self._blocks: tuple[SetBlock, ...] | None = None
         super().__init__(T=1.0 if self.scaled else model.T, x0=[*model.x0, *([np.nan] * len(extra))],
                          end_values=model.end_values, free_T=False, parameters=())
         self.constant_states = tuple(range(n, self.n_states))
@@ -235,11 +236,7 @@ class Unknowns(InclusionModel):
 
     # -- the wrapped pieces
     def _max_group(self, group: MaxGroup) -> MaxGroup:
-        def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            value, grad = group.pieces(self._user(y))
-            return self._times_T(y, np.asarray(value, float), self._gradient(y, grad))
-
-        return MaxGroup(pieces, group.name)
+        return MaxGroup(self._scaled(group.pieces), group.name)
 
     def _min_group(self, group: MinGroup) -> MinGroup:
         def pieces(y: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -273,7 +270,9 @@ class Unknowns(InclusionModel):
             return self._wrapped[key]
         return self._scalar(switch)
 
-    def _amplitude_group(self, piece: Callable) -> Callable:
+    def _scaled(self, piece: Callable) -> Callable:
+        """A piece group of y (a max-group, a sign amplitude, a cost group) as a function of
+        (x, σ_p, σ_T, u), scaled by T."""
         def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             value, grad = piece(self._user(y))
             return self._times_T(y, np.asarray(value, float), self._gradient(y, grad))
@@ -283,7 +282,7 @@ class Unknowns(InclusionModel):
     def _sign(self, term: SignTerm) -> SignTerm:
         amplitude = term.amplitude
         if isinstance(amplitude, tuple):
-            amplitude = tuple(self._amplitude_group(group) for group in amplitude)
+            amplitude = tuple(self._scaled(group) for group in amplitude)
         elif self.scaled:  # a constant a: T·a, a function of σ_T
             a = float(amplitude)
 
@@ -313,7 +312,7 @@ class Unknowns(InclusionModel):
         return SetBlock.equation(i, rhs, name=f"{self.state_names[i]}' = T·{self.state_names[j]}")
 
     def blocks(self) -> tuple[SetBlock, ...]:
-        if "blocks" not in self._wrapped:
+        if self._blocks is None:
             own = tuple(
                 SetBlock(block.coords, tuple(self._max_group(g) for g in block.max_groups),
                          tuple(self._min_group(g) for g in block.min_groups), block.name,
@@ -321,27 +320,21 @@ class Unknowns(InclusionModel):
                 for block in self.inner.blocks())
             resolved = tuple(self._resolved(i, j) for i, j in self.inner.resolved.items()) if self.scaled else ()
             still = tuple(self._still(coord) for coord in range(self.n, self.n_states))
-            self._wrapped["blocks"] = own + resolved + still  # type: ignore[assignment]
-        return self._wrapped["blocks"]  # type: ignore[return-value]
+            self._blocks = own + resolved + still
+        return self._blocks
 
     def surface(self) -> Surface | None:
         surface = self.inner.surface()
         if surface is None:
             return None
-        function = surface.function
-
-        def wrapped(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # the surface takes (x, p), no u
-            value, grad = function(self._user(x))
-            return value, self._gradient(x, grad)
-
-        return Surface(wrapped)
+        return Surface(self._scalar(surface.function))  # it takes (x, σ_p, σ_T), the model's (x, p)
 
     def cost(self) -> Cost | None:
         cost = self.inner.cost()
         if cost is None:
             return None
-        return Cost(tuple(self._amplitude_group(g) for g in cost.max_groups),
-                    tuple(self._amplitude_group(g) for g in cost.min_groups), cost.weight)
+        return Cost(tuple(self._scaled(g) for g in cost.max_groups), tuple(self._scaled(g) for g in cost.min_groups),
+                    cost.weight)
 
     # -- starting guesses and the way back
     def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

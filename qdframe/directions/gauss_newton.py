@@ -180,7 +180,7 @@ class _System:
         """Where each column of the extended unknowns goes in the KKT systems: a constant state
         (the model's `constant_states`, x_i' = 0: an unknown T or parameter) is one unknown
         x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states."""
-        constant = [i for i in getattr(self.f.model, "constant_states", ()) if i not in self.f.resolved]
+        constant = [i for i in self.f.model.constant_states if i not in self.f.resolved]
         if not constant:
             return None
         target = np.arange(self.size)
@@ -359,15 +359,17 @@ class _System:
         J, r, lam = self.jacobian, self.residual, self.penalty
         gradient = lam * (J.T @ r)
         self.settled = None
-        if self.R is not None:  # the active-set iteration's systems on the reduced columns
-            Jr = (J @ self.R).tocsr()
-            step = self._solve_active_set((lam * (Jr.T @ Jr) + mu * sp.diags(self.R.T @ self._damping())).tocsc(),
-                                          gradient, warm)
-        else:
-            step = self._solve_active_set((lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc(), gradient, warm)
+
+        def hessian(R: sp.csr_matrix | None) -> sp.csc_matrix:
+            """λJᵀJ + μW, on the constant states' reduced columns given R."""
+            JR, damping = (J, self._damping()) if R is None else ((J @ R).tocsr(), R.T @ self._damping())
+            return (lam * (JR.T @ JR) + mu * sp.diags(damping)).tocsc()
+
+        full = hessian(None) if self.R is None else None  # the active-set systems' H is the QP's too
+        step = self._solve_active_set(hessian(self.R) if full is None else full, gradient, warm)
         if step is not None:
             return step
-        return self._solve_cost_qp((lam * (J.T @ J) + mu * sp.diags(self._damping())).tocsc(), gradient)
+        return self._solve_cost_qp(hessian(None) if full is None else full, gradient)
 
     def _cold_start(self, values: np.ndarray) -> "ActiveSet":
         """The first guess without a previous step: the sides violated now, and each cost
