@@ -2,7 +2,7 @@
 
 qdframe's own built-ins are declared in its pyproject under the same groups as any
 plugin's (`qdframe.models`, `qdframe.directions`, `qdframe.line_searches`,
-`qdframe.schemes`). A plugin
+`qdframe.schemes`, `qdframe.step_qps`: gauss-newton's step-QP backends). A plugin
 that fails to load is a warning naming its distribution; two distributions claiming
 one name give a warning and a deterministic winner (qdframe itself first, then by
 distribution name); an unknown name is an error suggesting the close ones ("did you
@@ -25,8 +25,10 @@ GROUPS = {
     "directions": "qdframe.directions",
     "line_searches": "qdframe.line_searches",
     "schemes": "qdframe.schemes",
+    "step_qps": "qdframe.step_qps",
 }
-KIND_LABEL = {"models": "model", "directions": "direction", "line_searches": "line search", "schemes": "scheme"}
+KIND_LABEL = {"models": "model", "directions": "direction", "line_searches": "line search", "schemes": "scheme",
+              "step_qps": "step QP"}
 
 
 class PluginWarning(UserWarning):

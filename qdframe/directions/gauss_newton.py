@@ -33,7 +33,10 @@ KKT solve (:mod:`.kkt`) per guess, until the guess agrees with its own step to w
 ACTIVE_SET_TOL of the predicted decrease. The first guess is the set the previous step
 settled on, so near a solution one solve per step is the rule. Where the iteration does
 not settle, Clarabel solves the same model as a QP (the hinges and the max-pieces as
-inequalities), and its active set becomes the next step's first guess.
+inequalities), and its active set becomes the next step's first guess. The option
+``qp`` names another backend of that QP (:mod:`.step_qp`: clarabel, osqp, cvxpy,
+qpsolvers:NAME), which then solves every step; its solution is polished by the
+active-set iteration from the active set it points to (``qp_polish``).
 """
 
 from __future__ import annotations
@@ -44,10 +47,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import BackendError
+from ..errors import BackendError, QdframeError
 from .base import Direction, DirectionSolver, OptionError, number_rule
 from .kkt import KKTSolver, solve_kkt
 from .sparse_rows import RowBlocks
+from .step_qp import KKT_TOL, ActiveSetStep, SparseQP, StepQPSolver, StepSolution, make_step_qp, step_qp_names
 
 if TYPE_CHECKING:
     from ..functional import Functional
@@ -61,6 +65,10 @@ class GaussNewton(DirectionSolver):
     iterations (`start` resets it for each solve): it shrinks by 10 after a full step
     that achieved more than 3/4 of the predicted decrease, doubles after one below 1/4,
     and grows by 2/γ when the line search cut the step to γ < 1/2.
+
+    qp: the step QP's backend (`qdframe list`, step QPs: "active-set", the default, or a
+    general QP solver, :mod:`.step_qp`); qp_polish: polish a general backend's step by the
+    active-set iteration from the active set it points to (exact where it settles).
     """
 
     name = "gauss-newton"
@@ -74,6 +82,8 @@ class GaussNewton(DirectionSolver):
     mu: float = 1e-10
     mu_min: float = 1e-12
     mu_max: float = 1e8
+    qp: str = ActiveSetStep.name
+    qp_polish: bool = True
     _state: dict = field(default_factory=dict, repr=False)
     option_rules = {name: number_rule(above=0.0, why="a damping") for name in ("mu", "mu_min", "mu_max")}
 
@@ -87,21 +97,30 @@ class GaussNewton(DirectionSolver):
         if not self.mu_min <= self.mu <= self.mu_max:
             raise OptionError(type(self).__name__, "mu", f"a number in [mu_min, mu_max] = [{self.mu_min:g}, "
                                                          f"{self.mu_max:g}]", self.mu)
+        try:
+            self._state["backend"] = make_step_qp(self.qp)
+        except QdframeError as exc:
+            raise OptionError(type(self).__name__, "qp", "a step-QP backend (qdframe list: step QPs): "
+                              + ", ".join(step_qp_names()), f"{self.qp} ({exc})") from None
 
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)
         self._adapt(xi, value)
         system = _System(functional, xi, delta, self._state.setdefault("kkt", KKTSolver()))
         mu = self._state["mu"]
-        step_ext, predicted, slope = system.solve(mu, warm=self._state.get("active_set"))
+        step_ext, predicted, slope = system.solve(mu, warm=self._state.get("active_set"), backend=self._state["backend"],
+                                                  polish=self.qp_polish, previous=self._state.get("qp_solution"))
         step = system.unknowns_step(step_ext)
-        self._state.update(previous_value=value, predicted=predicted, xi=xi, step=step, active_set=system.settled)
+        self._state.update(previous_value=value, predicted=predicted, xi=xi, step=step, active_set=system.settled,
+                           qp_solution=system.qp_solution)
         per_node = np.linalg.norm(step, axis=1)
         return Direction(step=step, deviation=per_node, slope=slope,
                          stationary=bool(predicted <= 1e-14 * max(value, 1e-300) or not np.any(per_node)))
 
     def start(self, functional: "Functional") -> None:
+        backend = self._state.get("backend")
         self._state.clear()
+        self._state["backend"] = backend if backend is not None else make_step_qp(self.qp)
 
     @property
     def factorizations(self) -> int:
@@ -133,8 +152,6 @@ ROUNDING = 1e-12  # a side or piece within this × the largest predicted value o
 THETA_TOL = 1e-9  # a tie weight θ above −this counts as ≥ 0
 TIE_SOFTNESS = 1e-14  # ε of the tie rows (kkt.solve_kkt's soft): a tie on a fixed x_i(0) repeats a row of E
 IDENTIFY_TOL = 1e-7  # what counts as violated or tied in the QP's step (an interior point's precision)
-QP_TOL = 1e-12  # Clarabel's gap and feasibility tolerances for the step QP
-QP_RETRY_TOL = 1e-10  # the second try after InsufficientProgress at QP_TOL
 
 
 @dataclass(frozen=True)
@@ -350,26 +367,35 @@ class _System:
             return sp.csr_matrix((0, self.size)), np.zeros(0)
         return rows.matrix(), np.concatenate(values)
 
-    def solve(self, mu: float, warm: "ActiveSet | None" = None) -> tuple[np.ndarray, float, float]:
+    def solve(self, mu: float, warm: "ActiveSet | None" = None, backend: StepQPSolver | None = None,
+              polish: bool = True, previous: StepSolution | None = None) -> tuple[np.ndarray, float, float]:
         """The step (extended), the predicted decrease of the objective, and its slope.
 
         warm: the active set the previous step settled on (same grid), the first guess of
-        this one; the set this step settles on is left in `self.settled` (None when the
-        Clarabel QP found the step)."""
+        this one; the set this step settles on is left in `self.settled`. backend: the
+        step-QP backend (:mod:`.step_qp`; None or ``active-set``: the active-set iteration,
+        Clarabel where it does not settle); `previous` its last solution (a warm start),
+        this step's in `self.qp_solution`."""
         J, r, lam = self.jacobian, self.residual, self.penalty
         gradient = lam * (J.T @ r)
-        self.settled = None
+        self.settled, self.qp_solution = None, None
+        cache: dict[bool, sp.csc_matrix] = {}
 
-        def hessian(R: sp.csr_matrix | None) -> sp.csc_matrix:
-            """λJᵀJ + μW, on the constant states' reduced columns given R."""
-            JR, damping = (J, self._damping()) if R is None else ((J @ R).tocsr(), R.T @ self._damping())
-            return (lam * (JR.T @ JR) + mu * sp.diags(damping)).tocsc()
+        def hessian(reduced: bool) -> sp.csc_matrix:
+            """λJᵀJ + μW, on the constant states' reduced columns (R) if `reduced`; the
+            active-set systems' H (reduced where there are constant states) is the QP's too."""
+            reduced = reduced and self.R is not None
+            if reduced not in cache:
+                JR, damping = ((J @ self.R).tocsr(), self.R.T @ self._damping()) if reduced else (J, self._damping())
+                cache[reduced] = (lam * (JR.T @ JR) + mu * sp.diags(damping)).tocsc()
+            return cache[reduced]
 
-        full = hessian(None) if self.R is None else None  # the active-set systems' H is the QP's too
-        step = self._solve_active_set(hessian(self.R) if full is None else full, gradient, warm)
-        if step is not None:
-            return step
-        return self._solve_cost_qp(hessian(None) if full is None else full, gradient)
+        backend = backend if backend is not None else make_step_qp(ActiveSetStep.name)
+        if backend.structured:
+            step = self._solve_active_set(hessian(True), gradient, warm)
+            if step is not None:
+                return step
+        return self._solve_qp(hessian, gradient, backend, polish, previous)
 
     def _cold_start(self, values: np.ndarray) -> "ActiveSet":
         """The first guess without a previous step: the sides violated now, and each cost
@@ -384,7 +410,7 @@ class _System:
 
     def _solve_active_set(self, hessian: sp.csc_matrix, gradient: np.ndarray,
                           warm: "ActiveSet | None") -> tuple[np.ndarray, float, float] | None:
-        """The step model (the QP of :meth:`_solve_cost_qp`) minimized by a primal-dual
+        """The step model (the QP of :meth:`_step_qp`) minimized by a primal-dual
         active-set (semismooth Newton) iteration, one sparse KKT solve per guess.
 
         A guess has two parts. Hinges: the sides taken as violated, each adding
@@ -405,8 +431,8 @@ class _System:
         solution on the kink of |x1| and z1 on a side of F at every node) the guesses
         otherwise chatter, one side per guess, for 30 guesses.
 
-        None if no guess is accepted in MAX_GUESSES solves, or a tie system is singular
-        (Clarabel takes over)."""
+        None if no guess is accepted in MAX_GUESSES solves, or a tie system is singular (a
+        general QP backend takes over: :meth:`_solve_qp`)."""
         lam, w = self.penalty, self.f.weights
         matrix, values = self._hinges()
         max_groups, min_groups = self.cost if self.cost is not None else ([], [])
@@ -536,21 +562,20 @@ class _System:
             slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
         return slope
 
-    def _solve_cost_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[np.ndarray, float, float]:
-        """The step model as a sparse QP in [d | t | s] (Clarabel), where the active-set
-        iteration did not settle (the same model: one slack per side of every block):
+    def _step_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[SparseQP, slice]:
+        """The step model as a sparse QP in v = [d | t | s] (the same model as the active-set
+        iteration's: one slack per side of every block), and where d sits in v:
 
         min ½dᵀHd + gᵀd + Σ_k w_k t_k + (λ/2)·Σ s² + Σ_k w_k ∇b_p*·d_k
         s.t. E d = 0;  a_q + ∇a_q·d_k ≤ t_k (every piece q of each cost max-group);
              √w_k(ℓ_side + ∇ℓ_side·d_k) ≤ s and 0 ≤ s (every side of every block).
-        """
-        import clarabel
 
+        The objective is divided by max(I(ξ), 1e-6), so that it is near O(1) for solvers
+        whose tolerances are absolute."""
         nodes, w, lam = self.nodes, self.f.weights, self.penalty
         y_cols = self.y_cols()
         matrix, values = self._hinges()
         max_groups, min_groups = self.cost if self.cost is not None else ([], [])
-        min_linear = self._min_linear(min_groups)
         n_t, n_s = nodes * len(max_groups), values.size
         t0, s0 = self.size, self.size + n_t
         total = s0 + n_s
@@ -565,43 +590,47 @@ class _System:
                 shape=(count, total)), -piece_values[node, piece]))
         slack = sp.hstack([sp.csr_matrix((n_s, s0)), -sp.eye(n_s)])
         hinges = sp.hstack([matrix, sp.csr_matrix((n_s, total - self.size))]) + slack
-        inequalities = sp.vstack([part for part, _ in pieces] + [hinges, slack], format="csc")
-        P = sp.block_diag([hessian, sp.csc_matrix((n_t, n_t)), lam * sp.eye(n_s)], format="csc")
-        q = np.concatenate([gradient + min_linear, np.tile(w, len(max_groups)), np.zeros(n_s)])
         E = self.constraints
-        A = sp.vstack([sp.hstack([E, sp.csr_matrix((E.shape[0], total - self.size))]), inequalities], format="csc")
-        b_vec = np.concatenate([np.zeros(E.shape[0])] + [bound for _, bound in pieces] + [-values, np.zeros(n_s)])
-        scale = 1.0 / max(self.value, 1e-6)  # the QP objective near O(1): Clarabel's gap tolerances are absolute
+        scale = 1.0 / max(self.value, 1e-6)
+        P = sp.block_diag([hessian, sp.csc_matrix((n_t, n_t)), lam * sp.eye(n_s)], format="csc")
+        q = np.concatenate([gradient + self._min_linear(min_groups), np.tile(w, len(max_groups)), np.zeros(n_s)])
+        qp = SparseQP(
+            P=(scale * P).tocsc(), q=scale * q,
+            A=sp.hstack([E, sp.csr_matrix((E.shape[0], total - self.size))], format="csc"), b=np.zeros(E.shape[0]),
+            G=sp.vstack([part for part, _ in pieces] + [hinges, slack], format="csc"),
+            h=np.concatenate([bound for _, bound in pieces] + [-values, np.zeros(n_s)]),
+        )
+        return qp, slice(0, self.size)
 
-        def clarabel_solve(tol: float):
-            settings = clarabel.DefaultSettings()
-            settings.verbose = False
-            for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
-                setattr(settings, name, tol)
-            return clarabel.DefaultSolver(
-                sp.triu(scale * P, format="csc"), scale * q, A, b_vec,
-                [clarabel.ZeroConeT(E.shape[0]), clarabel.NonnegativeConeT(inequalities.shape[0])], settings,
-            ).solve()
-
-        solution = clarabel_solve(QP_TOL)
-        if str(solution.status) == "InsufficientProgress":
-            # near a solution (objective ~1e-15) 1e-12 can be below Clarabel's reach; whether it then
-            # stalls depends on rounding-level details of ξ: try once more at QP_RETRY_TOL (the line
-            # search checks the step's actual decrease)
-            solution = clarabel_solve(QP_RETRY_TOL)
-            if str(solution.status) not in ("Solved", "AlmostSolved"):  # at Clarabel's precision: no further step
+    def _solve_qp(self, hessian, gradient: np.ndarray, backend: StepQPSolver, polish: bool,
+                  previous: StepSolution | None) -> tuple[np.ndarray, float, float]:
+        """The step by a general QP backend (:mod:`.step_qp`) on :meth:`_step_qp`: its raw
+        solution, polished by the active-set iteration from the active set it points to where
+        `polish` (the exact step where that settles), else kept where its KKT error is ≤
+        KKT_TOL; a backend that ran out of progress at its own precision gives no step."""
+        qp, d_part = self._step_qp(hessian(False), gradient)
+        fits = previous is not None and (previous.v.size, previous.y.size, previous.z.size) == (
+            qp.size, qp.b.size, qp.h.size)
+        solution = backend.solve(qp, previous if fits else None)
+        self.qp_solution = solution
+        d = solution.v[d_part]
+        matrix, values = self._hinges()
+        max_groups, min_groups = self.cost if self.cost is not None else ([], [])
+        min_linear = self._min_linear(min_groups)
+        if polish and np.isfinite(d).all():
+            step = self._solve_active_set(hessian(True), gradient, self._identify(d, values + matrix @ d, max_groups))
+            if step is not None:
+                return step
+        error = qp.kkt_error(solution.v, solution.y, solution.z)
+        if not error <= KKT_TOL:
+            if "InsufficientProgress" in solution.status:  # at the backend's precision: no further step
                 return np.zeros(self.size), 0.0, 0.0
-        if str(solution.status) not in ("Solved", "AlmostSolved"):
-            raise BackendError(f"direction 'gauss-newton': the step QP (Clarabel) ended with status {solution.status}")
-        v = np.asarray(solution.x)
-        d, t, s = v[: self.size], v[t0:s0], v[s0:]
-        self.settled = self._identify(d, values + matrix @ d, max_groups)
-        # the predicted decrease from the QP's own objective at its solution: t and s bound the
-        # pieces' max and the hinges from above, to the solver's tolerance
-        model = (0.5 * lam * (np.sum((self.residual + self.jacobian @ d) ** 2) + float(s @ s))
-                 + float(np.tile(w, len(max_groups)) @ t) + float(min_linear @ d)
-                 + sum(float(w @ piece_values.min(axis=1)) for piece_values, _ in min_groups))
-        return d, float(self.value - model), self._slope(d, gradient + min_linear, max_groups, matrix, values)
+            raise BackendError(f"direction 'gauss-newton': the step QP ({backend.label}) ended with status "
+                               f"{solution.status} and KKT error {error:.1e} > {KKT_TOL:g}")
+        predicted_sides = values + matrix @ d
+        self.settled = self._identify(d, predicted_sides, max_groups)
+        return (d, self._decrease(d, predicted_sides, min_linear, max_groups, min_groups),
+                self._slope(d, gradient + min_linear, max_groups, matrix, values))
 
     def unknowns_step(self, step: np.ndarray) -> np.ndarray:
         """The step on ξ = [x | z | u] per node (dropping Z)."""
