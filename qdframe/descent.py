@@ -32,7 +32,11 @@ ProgressCallback = Callable[[IterationRecord], None]
 
 @dataclass(frozen=True)
 class DescentOptions:
-    """The method's parameters; the paper's defaults δ = 1e-3, ε = 1e-2, γ̄ = 1 (Section 7)."""
+    """The method's parameters; the paper's defaults δ = 1e-3, ε = 1e-2, γ̄ = 1 (Section 7).
+
+    eps_floor: where every node's deviation is ≤ ε but the iterate is not solved, ε and δ
+    shrink together by EPS_SHRINK and the descent goes on, down to ε = eps_floor (the
+    paper's method carried to convergence); eps_floor = eps keeps ε and δ fixed."""
 
     max_iter: int = 500
     tol: float = 1e-10
@@ -40,14 +44,18 @@ class DescentOptions:
     eps: float = 1e-2
     gamma_max: float = 1.0
     residual_tol: float = 1e-8  # pointwise, scaled to the states: see :mod:`qdframe.certify`
+    eps_floor: float = 1e-12
 
     def __post_init__(self) -> None:
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
             raise InputError("max_iter", "an integer ≥ 0", self.max_iter)
-        for field_name in ("tol", "delta", "eps", "gamma_max", "residual_tol"):
+        for field_name in ("tol", "delta", "eps", "gamma_max", "residual_tol", "eps_floor"):
             value = getattr(self, field_name)
             if not isinstance(value, (int, float, np.floating)) or not np.isfinite(value) or value <= 0:
                 raise InputError(field_name, "a positive finite number", value)
+        if self.eps_floor > self.eps:
+            raise InputError("eps_floor", f"a number ≤ eps = {self.eps:g} (eps_floor = eps: ε and δ fixed)",
+                             self.eps_floor)
 
 
 def load_model(name: str, **overrides) -> InclusionModel:
@@ -239,8 +247,10 @@ def solve(
             """A record counted over all grids so far."""
             return dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
 
-        # a stage before the last only provides a start: it stops on the looser ε
-        stage = dataclasses.replace(options, max_iter=budget, eps=options.eps * (1 if last else COARSE_EPS_FACTOR))
+        # a stage before the last only provides a start: it stops on the looser ε, which stays fixed
+        stage = options if last else dataclasses.replace(options, eps=options.eps * COARSE_EPS_FACTOR,
+                                                         eps_floor=options.eps * COARSE_EPS_FACTOR)
+        stage = dataclasses.replace(stage, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, solver, search, stage, shown, start)
         history += [shift(record) for record in result.history]
@@ -516,6 +526,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     flooded: tuple[int, np.ndarray, ModelOutputError] | None = None  # the trial point that reached REJECTED_LIMIT
     uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
     watchdogs = 0  # full-step rounds tried where the descent stalled (:func:`_watchdog`)
+    eps, delta = options.eps, options.delta  # shrunk where the iterate is ε-stationary but not solved
+    window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
 
     def escape() -> bool:
         """Where the descent would stop `stationary`: a watchdog round of full steps (for a
@@ -550,19 +562,25 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                     status, message = "solved", ""
                     break
                 uncertified.append(max(check.ratio for check in found))
-                if (len(uncertified) > CERTIFY_WINDOW
-                        and uncertified[-1] * CERTIFY_SHRINK > uncertified[-1 - CERTIFY_WINDOW]):
+                if (len(uncertified) > window
+                        and uncertified[-1] * CERTIFY_SHRINK > uncertified[-1 - window]):
                     if escape():
                         continue
                     status, message = "stationary", (f"the pointwise checks shrank by less than {CERTIFY_SHRINK:g}× in "
-                                                     f"{CERTIFY_WINDOW} iterations with I ≤ tol")
+                                                     f"{window} iterations with I ≤ tol")
                     break
             if iteration > options.max_iter:
                 break
-            direction = solver.compute(functional, xi, options.delta)
+            direction = solver.compute(functional, xi, delta)
             deviation = float(np.max(direction.deviation))
-            if direction.stationary is None and deviation <= options.eps:
-                status, message = "stationary", f"deviation {deviation:.2e} ≤ ε at every node"
+            if direction.stationary is None and deviation <= eps:
+                if eps > options.eps_floor:  # ε-stationary, not solved: the paper's ε and δ shrink, the descent goes on
+                    shrunk = max(eps / EPS_SHRINK, options.eps_floor)
+                    eps, delta = shrunk, delta * shrunk / eps
+                    uncertified.clear()
+                    continue
+                status, message = "stationary", (f"deviation {deviation:.2e} ≤ ε at every node" + (
+                    f" (ε and δ shrunk to {eps:.0e}, {delta:.0e}: the floor)" if eps < options.eps else ""))
                 break
             if direction.stationary:
                 if escape():
@@ -638,7 +656,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     if rejected and status != "solved":
         message += (f"; {rejected} line-search trial point(s) rejected where the model is non-finite"
                     + (f" (last: {rejected_label})" if rejected_label else ""))
-    return _result(functional, solver, search, options, xi, status, message, history, time.perf_counter() - clock)
+    return _result(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status, message,
+                   history, time.perf_counter() - clock)
 
 
 def _watchdog(functional: Functional, solver: DirectionSolver, xi: np.ndarray, objective: float,
@@ -711,6 +730,8 @@ class _Trial:
 # that is still on its way to certified.
 CERTIFY_WINDOW = 40
 CERTIFY_SHRINK = 4.0
+CERTIFY_WINDOW_FIRST_ORDER = 400  # the paper's min-norm directions converge linearly: a longer window
+EPS_SHRINK = 10.0  # ε and δ are divided by this where the iterate is ε-stationary but not solved
 # where the descent would stop `stationary`, a solver whose steps are Newton steps (`full_steps`)
 # gets up to WATCHDOG_ROUNDS rounds of WATCHDOG_STEPS full steps (:func:`_watchdog`), kept when
 # they end WATCHDOG_GAIN lower (a long stick-slip horizon on a fine mesh stalls with one selection

@@ -30,6 +30,7 @@ residual. A bad step is never returned silently.
 
 from __future__ import annotations
 
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -248,8 +249,10 @@ class QpsolversStep(StepQPSolver):
         qpsolvers = require("qpsolvers", f"gauss-newton (qp={self.label})", "'qdframe[qpsolvers]'")
         problem = qpsolvers.Problem(qp.P, qp.q, qp.G, qp.h, qp.A, qp.b)
         try:
-            solution = qpsolvers.solve_problem(problem, solver=self.solver, initvals=None if warm is None else warm.v,
-                                               **QPSOLVERS_SETTINGS.get(self.solver, {}))
+            with warnings.catch_warnings():  # its status warnings: the status is reported and judged here
+                warnings.simplefilter("ignore", UserWarning)
+                solution = qpsolvers.solve_problem(problem, solver=self.solver, initvals=None if warm is None else warm.v,
+                                                   **QPSOLVERS_SETTINGS.get(self.solver, {}))
         except Exception as exc:  # noqa: BLE001 - the solver package's own failure
             raise BackendError(f"direction 'gauss-newton': the step QP ({self.label}) raised "
                                f"{type(exc).__name__}: {exc}") from exc

@@ -143,7 +143,9 @@ def test_the_active_set_step_minimizes_the_step_qp(model_index, seed, exact, mon
     assert system.kkt.analyses == 1
     J, lam, damping = system.jacobian, system.penalty, mu * system._damping()
     hessian = (lam * (J.T @ J) + gn.sp.diags(damping)).tocsc()
-    d_qp, predicted_qp, _ = system._solve_cost_qp(hessian, lam * (J.T @ system.residual))
+    clarabel = gn.make_step_qp("clarabel")  # the raw QP step (no polish by the active-set iteration)
+    d_qp, predicted_qp, _ = system._solve_qp(lambda reduced: hessian, lam * (J.T @ system.residual), clarabel,
+                                             polish=False, previous=None)
 
     def model_value(step, decrease):  # the QP's objective, up to the constant I(ξ)
         return -decrease + 0.5 * float(damping @ step**2)
