@@ -69,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--tol", type=positive_float, help="stop `solved` when I ≤ tol (default: the model's)")
     solve.add_argument("--delta", type=positive_float, default=1e-3, help="δ of δ-active pieces (default 1e-3)")
     solve.add_argument("--eps", type=positive_float, default=1e-2, help="stationarity ε (default 1e-2)")
+    solve.add_argument("--eps-floor", type=positive_float,
+                       help="the paper's directions: ε and δ shrink by 10 where ε-stationary but not solved, down to "
+                            "this (default: 1e-12 when the mesh is refined to the target; with --nodes, ε: fixed)")
     solve.add_argument("--gamma-max", type=positive_float, default=1.0, help="line-search bound γ̄ (default 1)")
     solve.add_argument("--T", type=positive_float, help="final time (overrides the model's)")
     solve.add_argument("--x0", type=boundary_vector, help="initial state V,V,... (overrides the model's); free: not given")
@@ -220,7 +223,7 @@ def _list(args: argparse.Namespace) -> int:
     return 0
 
 
-SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "gamma_max", "continuation", "scheme", "signs",
+SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "eps_floor", "gamma_max", "continuation", "scheme", "signs",
                  "selection_scale", "residual_tol", "accuracy", "max_nodes", "certificate")
 """Options of `qdframe solve` passed to :func:`qdframe.solve` under their own names."""
 

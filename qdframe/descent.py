@@ -44,7 +44,7 @@ class DescentOptions:
     eps: float = 1e-2
     gamma_max: float = 1.0
     residual_tol: float = 1e-8  # pointwise, scaled to the states: see :mod:`qdframe.certify`
-    eps_floor: float = 1e-12
+    eps_floor: float = 1e-12  # EPS_FLOOR
 
     def __post_init__(self) -> None:
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
@@ -91,6 +91,7 @@ def solve(
     eps: float = 1e-2,
     gamma_max: float = 1.0,
     residual_tol: float = 1e-8,
+    eps_floor: float | None = None,
     continuation: Sequence[int] | str | None = None,
     progress: ProgressCallback | None = None,
     scheme: str | Scheme | None = None,
@@ -137,7 +138,10 @@ def solve(
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
-    objective, `max_iter` when the budget is spent, `failed` when a backend reports an
+    objective (the paper's min-norm directions: where every node's deviation is ≤ ε but the
+    iterate is not solved, ε and δ shrink together by 10 and the descent goes on, down to
+    ε = `eps_floor`; None: 1e-12 for a certified solve, `nodes`/`mesh` without `accuracy`
+    keep the paper's fixed ε and δ; the result's options give the ε and δ it ended with), `max_iter` when the budget is spent, `failed` when a backend reports an
     error mid-run (the message says which).
 
     A line-search trial point where the model returns NaN/inf is rejected (no decrease);
@@ -199,7 +203,8 @@ def solve(
     nodes = final.nodes
     options = DescentOptions(
         max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
-        residual_tol=residual_tol,
+        residual_tol=residual_tol, eps_floor=eps if eps_floor is None and not refining else
+        (EPS_FLOOR if eps_floor is None else eps_floor),
     )
     solver = make_direction(direction)
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
@@ -579,8 +584,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                     eps, delta = shrunk, delta * shrunk / eps
                     uncertified.clear()
                     continue
-                status, message = "stationary", (f"deviation {deviation:.2e} ≤ ε at every node" + (
-                    f" (ε and δ shrunk to {eps:.0e}, {delta:.0e}: the floor)" if eps < options.eps else ""))
+                status, message = "stationary", f"deviation {deviation:.2e} ≤ ε at every node"
                 break
             if direction.stationary:
                 if escape():
@@ -653,6 +657,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                        f"{rejected} trial points rejected where the model is non-finite (the limit is {REJECTED_LIMIT}): "
                        "the descent keeps stepping where the model is not defined; make it finite there, or keep "
                        "the states away from it (in the sets, or by the start)") from error
+    if eps < options.eps and status != "solved":
+        message += f"; ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else "")
     if rejected and status != "solved":
         message += (f"; {rejected} line-search trial point(s) rejected where the model is non-finite"
                     + (f" (last: {rejected_label})" if rejected_label else ""))
@@ -732,6 +738,7 @@ CERTIFY_WINDOW = 40
 CERTIFY_SHRINK = 4.0
 CERTIFY_WINDOW_FIRST_ORDER = 400  # the paper's min-norm directions converge linearly: a longer window
 EPS_SHRINK = 10.0  # ε and δ are divided by this where the iterate is ε-stationary but not solved
+EPS_FLOOR = 1e-12  # the smallest ε of a certified solve (solve's eps_floor=None where the mesh is refined)
 # where the descent would stop `stationary`, a solver whose steps are Newton steps (`full_steps`)
 # gets up to WATCHDOG_ROUNDS rounds of WATCHDOG_STEPS full steps (:func:`_watchdog`), kept when
 # they end WATCHDOG_GAIN lower (a long stick-slip horizon on a fine mesh stalls with one selection

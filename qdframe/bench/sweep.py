@@ -68,9 +68,12 @@ USER_FRICTION = ("pivot-friction-pendulum", "two-block-chain", "relay-oscillator
 PEER_PROBLEMS = tuple(BENCH_MODELS)
 # direction preference of the suites: the default, the paper's, then the QP backends
 DIRECTION_PREFERENCE = ("gauss-newton", "native", "qpsolvers:daqp", "clarabel", "osqp", "cvxpy")
+COMPARED_TARGETS = (1e-3, 1e-6)  # --directions all: accuracy= runs at these (report.TARGETS' errors)
 RESIDUAL_TOL = 5e-3  # the paper's accuracy (boundary error ≤ 5e-3, Section 7)
 CLAIM_TOL = RESIDUAL_TOL  # a run that reports success promises error ≤ this (an accuracy= run: its target)
 ACCURACY_DIRECTION = "gauss-newton"  # accuracy= runs: the default direction, a line of their own
+ALL = "all"  # --directions all: every installed direction and every step-QP backend of gauss-newton
+STEP_QP_SPELLING = "gauss-newton[qp={}]"  # gauss-newton with a step-QP backend, as a sweep names it
 DEFAULT_MAX_ITER = 500  # the default call's row: solve()'s own budget
 
 
@@ -215,6 +218,42 @@ def installed_directions(
     return usable, skipped
 
 
+def every_direction() -> tuple[list[str], dict[str, str]]:
+    """`--directions all`: every installed direction (qpsolvers: each offered solver) and
+    gauss-newton with each installed step-QP backend (``gauss-newton[qp=NAME]``; the
+    default active-set is gauss-newton itself), and {name: why} for those that cannot run."""
+    from ..directions.step_qp import step_qp_names
+
+    directions, skipped = installed_directions(qpsolvers_all=True)
+    for name in step_qp_names():
+        if name == "active-set":
+            continue
+        try:
+            bench_direction(STEP_QP_SPELLING.format(name))
+        except Exception as exc:  # noqa: BLE001 - a missing package: reported, not run
+            skipped[STEP_QP_SPELLING.format(name)] = str(exc)
+            continue
+        directions.append(STEP_QP_SPELLING.format(name))
+    return directions, skipped
+
+
+def bench_direction(name: str) -> DirectionSolver:
+    """A direction by a sweep's name: a registered one, or ``NAME[key=value,…]`` with options."""
+    from ..directions.base import with_options
+
+    base, bracket, rest = name.partition("[")
+    if not bracket:
+        return make_direction(name)
+    if not rest.endswith("]"):
+        raise InputError("--directions", "NAME or NAME[key=value,…]", name)
+    options = dict(item.split("=", 1) for item in rest[:-1].split(",") if "=" in item)
+    return with_options(make_direction(base), options)
+
+
+def _base_direction(name: str) -> str:
+    return name.partition("[")[0]
+
+
 def _expand_prefix(prefix: str, every: bool) -> list[str]:
     if prefix != "qpsolvers:":
         return []
@@ -251,11 +290,14 @@ def plan(
         if name not in known:
             raise UnknownNameError("model", name, known)
     skipped: dict[str, str] = {}
-    if directions is None:
+    every = directions is not None and list(directions) == [ALL]
+    if every:
+        directions, skipped = every_direction()
+    elif directions is None:
         directions, skipped = installed_directions(qpsolvers_all=spec.directions is None, limit=spec.directions)
     else:
         for name in directions:
-            lookup("directions", name)  # an unknown name is a usage error; an uninstalled one a failed row
+            lookup("directions", _base_direction(name))  # an unknown name is a usage error; an uninstalled one a failed row
     searches = list(available("line_searches"))
     for name in line_searches or ():
         lookup("line_searches", name)
@@ -265,6 +307,8 @@ def plan(
     other_grids = grids if nodes is not None or spec.other_grids is None else spec.other_grids
     peer_grids = grids if nodes is not None or spec.peer_grids is None else spec.peer_grids
     targets = tuple(accuracy) if accuracy is not None else spec.accuracy
+    if every and accuracy is None:  # every method to the certified answer, at each error the report times
+        targets = tuple(sorted(set(targets) | set(COMPARED_TARGETS), reverse=True))
     tols = tuple(bvp_tols) if bvp_tols is not None else spec.bvp_tols
     default_budget = DEFAULT_MAX_ITER if max_iter is None else max_iter  # the default call's row: solve()'s own
     max_iter = spec.max_iter if max_iter is None else max_iter
@@ -281,11 +325,12 @@ def plan(
             ladder = grids if direction == ACCURACY_DIRECTION else other_grids
             for search in pairs:
                 cases += [Case(model, direction, search, int(n), max_iter, time_limit_s) for n in ladder]
-            if direction == ACCURACY_DIRECTION:
+            if direction == ACCURACY_DIRECTION or every:
                 search = _default_line_search(direction)
                 cases += [Case(model, direction, search, None, max_iter, time_limit_s, accuracy=float(e))
                           for e in targets]
-                if targets:  # the default call is an accuracy= run of its own: `--accuracy none` drops it too
+                if targets and direction == ACCURACY_DIRECTION:  # the default call is an accuracy= run of its own:
+                    # `--accuracy none` drops it too
                     cases.append(Case(model, direction, search, None, default_budget, time_limit_s, default=True))
     if peers:
         for model in models:
@@ -315,7 +360,7 @@ def plan(
 
 
 def _default_line_search(direction: str) -> str:
-    return lookup("directions", direction).obj.default_line_search
+    return lookup("directions", _base_direction(direction)).obj.default_line_search
 
 
 # ------------------------------------------------------------------------- one run
@@ -412,7 +457,7 @@ def _ignorable(warning) -> bool:
 
 def _run_qdframe(case: Case, row: dict, history: dict) -> None:
     model = resolve_model(case.model)
-    solver = make_direction(case.direction)
+    solver = bench_direction(case.direction)
     timed = _Deadline(solver, case.time_limit_s) if case.time_limit_s else solver
     if case.default:
         result = solve(model, direction=timed, max_iter=case.max_iter)
