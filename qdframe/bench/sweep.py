@@ -323,6 +323,8 @@ def plan(
             else:
                 pairs = [_default_line_search(direction)]
             ladder = grids if direction == ACCURACY_DIRECTION else other_grids
+            if every and direction not in DIRECTION_PREFERENCE[:2]:  # the backends: their certified runs alone
+                ladder = ()
             for search in pairs:
                 cases += [Case(model, direction, search, int(n), max_iter, time_limit_s) for n in ladder]
             if direction == ACCURACY_DIRECTION or every:

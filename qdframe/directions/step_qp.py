@@ -41,7 +41,7 @@ import scipy.sparse as sp
 from ..errors import BackendError, InputError
 from .qp import require
 
-KKT_TOL = 1e-6  # a raw solution's largest relative KKT residual (kkt_error) for it to be kept
+KKT_TOL = 1e-4  # a raw solution's largest relative KKT error (kkt_error) for it to be kept: an inexact Newton step
 
 
 @dataclass(frozen=True)
