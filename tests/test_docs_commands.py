@@ -76,6 +76,10 @@ NOT_RUN = {
     "qdframe bench run --suite quick --peers --out quick": "a 3-minute measurement, run by test_bench_run.py",
     "qdframe bench run --suite quick --peers --out docs/bench/quick-new": "the same measurement, into the docs",
     "qdframe bench run --suite quick --peers --executor dask --out quick-dask": "the same through dask",
+    # every direction and step-QP backend to the certified answer on the quick suite's models: 190
+    # runs, 614 s on the idle 2-core machine (2026-11-26); tests/bench/test_bench_run.py plans it
+    # and runs a gauss-newton[qp=osqp] row, tests/directions/test_step_qp.py every backend
+    "qdframe bench run --suite quick --directions all --out docs/bench/directions": "a 10-minute measurement",
     # every model with an exact solution at two targets, uniform ladders to 81921 points: 3–5
     # minutes; tests/bench/test_bench_accuracy.py runs its code on one model, every step
     "qdframe bench accuracy": "a 4-minute measurement, its code run by test_bench_accuracy.py",

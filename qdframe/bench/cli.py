@@ -87,7 +87,10 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
                      "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
                      "and line search")
     run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")
-    run.add_argument("--directions", type=names, metavar="NAME,..", help="only these directions (default: the suite's)")
+    run.add_argument("--directions", type=names, metavar="NAME,..",
+                     help="only these directions (default: the suite's); 'all': every installed direction and "
+                          "gauss-newton with every step-QP backend (gauss-newton[qp=NAME]), each run to the certified "
+                          "answer (accuracy= 1e-3 and 1e-6)")
     run.add_argument("--line-searches", type=names, metavar="NAME,..",
                      help="every direction with each of these (default: each direction's own; full: all)")
     run.add_argument("--nodes", type=node_counts, metavar="N,..", help="every solver's grids (default: the suite's)")
@@ -130,7 +133,7 @@ def _pages(args: argparse.Namespace) -> int:
                 if not (root / "docs" / "bench" / s / "results.csv").is_file()]
     if missing:
         raise InputError("--root", "a qdframe checkout with README.md, docs/benchmark-results.md and "
-                                   "docs/bench/{quick,standard}/results.csv", f"{root} (missing {missing[0]})")
+                                   "docs/bench/{quick,standard,directions}/results.csv", f"{root} (missing {missing[0]})")
     changed = update(root, check=args.check)
     for path in changed:
         print(f"{path}: {'differs from its reports' if args.check else 'rewritten'}")

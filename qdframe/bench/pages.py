@@ -18,15 +18,16 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from .report import ranking, ratio_table
+from .report import ranking, ratio_table, solver_times
 from .sweep import read_csv
 
 PAGES = ("README.md", "docs/benchmark-results.md")
-SUITES = ("quick", "standard")
+SUITES = ("quick", "standard", "directions")  # the folders of docs/bench; directions: --suite quick --directions all
 BLOCKS: dict[str, tuple[str, Callable[[list[dict]], str]]] = {
     "quick ranking": ("quick", ranking),
     "standard ranking": ("standard", ranking),
     "standard ratios": ("standard", ratio_table),
+    "directions times": ("directions", solver_times),
 }
 MARK = re.compile(r"(<!-- generated: (?P<name>[a-z ]+) -->\n)(?P<body>.*?)(\n<!-- end generated -->)", re.S)
 

@@ -332,6 +332,33 @@ def time_table(rows: Sequence[dict], targets: Sequence[float] = TARGETS) -> str:
     return "\n".join(lines)
 
 
+def solver_times(rows: Sequence[dict], targets: Sequence[float] = TARGETS) -> str:
+    """Per solver (a direction × its QP backend, a peer): on how many of the sweep's models it
+    reached each target error (the fastest such run of each model, whatever its status) and
+    the median and largest of those times; the solvers sorted by the models they reached at
+    the last target, then by their median time to it."""
+    reached = {target: time_to(rows, target) for target in targets}
+    models = sorted({r["model"] for r in rows})
+    lines = ["| solver | " + " | ".join(f"reached {t:g} | median time to {t:g} (s) | slowest (s)" for t in targets) + " |",
+             "|:---|" + "---:|---:|---:|" * len(targets)]
+
+    def times(solver: str, target: float) -> list[float]:
+        return [reached[target][(m, solver)]["wall_time_s"] for m in models if (m, solver) in reached[target]]
+
+    def order(solver: str):
+        last = times(solver, targets[-1]) if targets else []
+        return (-len(last), float(np.median(last)) if last else math.inf, solver)
+
+    for solver in sorted({solver_label(r) for r in rows}, key=order):
+        cells = []
+        for target in targets:
+            found = times(solver, target)
+            cells += [f"{len(found)}/{len(models)}", _number(float(np.median(found)), 3, "f") if found else "—",
+                      _number(max(found), 3, "f") if found else "—"]
+        lines.append(f"| {solver} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def ratio_table(rows: Sequence[dict], targets: Sequence[float] = TARGETS) -> str:
     """Per model and peer: qdframe's fastest time to each target against the peer's."""
     lines = ["| model | peer | " + " | ".join(f"to {t:g}: qdframe (s) | peer (s) | peer ÷ qdframe" for t in targets) + " |",
@@ -437,6 +464,12 @@ def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: flo
         "runs that did not; crosses: failed or stopped by the time limit.",
         "",
         "## Time to an error",
+        "",
+        "By solver, over the models of the sweep:",
+        "",
+        solver_times(rows),
+        "",
+        "By model:",
         "",
         time_table(rows),
         "",

@@ -18,7 +18,8 @@ from qdframe.cli import main as qdframe_main
 from qdframe.descent import make_direction
 from qdframe.bench import peers as bench_peers
 from qdframe.bench import sweep as bench_sweep
-from qdframe.bench.report import common_models, ranking, ratios, shifted_geometric_mean, summarize, time_to
+from qdframe.bench.report import (common_models, ranking, ratios, shifted_geometric_mean, solver_times, summarize,
+                                  time_to)
 from qdframe.bench.sweep import Case, claim, read_csv, run_case
 
 TINY = ["run", "--models", "paper-7.1,coulomb-rest-to-rest", "--directions", "gauss-newton,native",
@@ -304,6 +305,42 @@ def test_quick_suite_plan_sweeps_each_solvers_knob():
     models = {c.model for c in sweep.cases}
     assert {"paper-7.1", "block-stop-stick", "slide-after-reaching"} <= models  # a stick, a reaching phase
     assert len({c.key for c in sweep.cases}) == len(sweep.cases)
+
+
+def test_directions_all_runs_every_direction_and_step_qp_backend_to_the_certified_answer():
+    sweep = bench_sweep.plan("quick", directions=["all"])
+    by_solver = {}
+    for case in sweep.cases:
+        by_solver.setdefault(case.solver, set()).add(case.knob)
+    certified = {"accuracy=0.001", "accuracy=1e-06"}
+    for backend in ("clarabel", "osqp", "cvxpy", "qpsolvers:proxqp"):
+        assert by_solver[f"gauss-newton[qp={backend}] / armijo (accuracy=)"] == certified
+    for direction in ("native", "osqp", "clarabel", "cvxpy", "qpsolvers:daqp"):
+        assert by_solver[f"{direction} / golden (accuracy=)"] == certified
+    assert by_solver["gauss-newton / armijo (accuracy=)"] == certified
+    assert by_solver["native / golden"] == {"N=11", "N=41"}  # the paper's grids stay
+    assert "gauss-newton[qp=osqp] / armijo" not in by_solver  # a backend: its certified runs alone
+    assert by_solver["qdframe.solve(model)"] == {"default"}
+    assert len({c.key for c in sweep.cases}) == len(sweep.cases)
+
+
+def test_a_step_qp_backend_row_is_run_and_judged():
+    row = run_case(Case("paper-7.1", "gauss-newton[qp=osqp]", "armijo", None, max_iter=100, time_limit_s=None,
+                        accuracy=1e-3))
+    assert row["status"] == "solved" and row["claim"] == "confirmed" and row["error"] <= 1e-3
+    with pytest.raises(Exception, match="qp="):
+        bench_sweep.bench_direction("gauss-newton[qp=nonsense]")
+
+
+def test_solver_times_counts_the_models_each_solver_reached():
+    def row(direction, model, time, error):
+        return {"model": model, "direction": direction, "line_search": "x", "knob": "k", "wall_time_s": time,
+                "error": error, "status": "solved"}
+
+    rows = [row("a", "m1", 0.1, 1e-7), row("a", "m2", 0.3, 1e-4), row("b", "m1", 1.0, 1e-7), row("b", "m2", 2.0, 1e-7)]
+    lines = solver_times(rows).splitlines()
+    assert lines[2] == "| b / x | 2/2 | 1.500 | 2.000 | 2/2 | 1.500 | 2.000 |"  # both models to 1e-6: first
+    assert lines[3] == "| a / x | 2/2 | 0.200 | 0.300 | 1/2 | 0.100 | 0.100 |"
 
 
 def test_standard_suite_covers_the_issue_list():
