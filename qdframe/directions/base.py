@@ -124,6 +124,9 @@ class DirectionSolver(ABC):
         """Direction at ξ with δ-active pieces (paper Section 6)."""
 
 
+ROUNDING = 16 * np.finfo(float).eps  # a direction entry below this × its node's largest datum is rounding
+
+
 class MinNormDirection(DirectionSolver):
     """The paper's direction; subclasses supply the batched min-norm QP solver.
 
@@ -168,6 +171,12 @@ class MinNormDirection(DirectionSolver):
         worst = np.argmax(distance, axis=1)  # the worst vertex of −B_k
         rows = np.arange(nodes)
         step = -points.reshape(nodes, count, dim)[rows, worst]
+        # an entry at the rounding of its node's data is 0 in exact arithmetic (a coordinate where
+        # the point sits on a kink, e.g. x1 of |x1| at x1 = 0): kept, its |g|·|generator| in the
+        # directional derivative outweighs ‖G‖² once ‖G‖ ≲ 1e-8, and G ascends (paper-7.1 at ε = 1e-8)
+        scale = np.maximum(np.abs(center).reshape(nodes, count, dim).max(axis=(1, 2)),
+                           np.abs(generators).reshape(nodes, -1).max(axis=1, initial=0.0) if generators.size else 0.0)
+        step = np.where(np.abs(step) <= ROUNDING * scale[:, None], 0.0, step)
         deviation = distance[rows, worst]
         return Direction(step=step, deviation=deviation, slope=qd.directional_derivative(step, weights))
 

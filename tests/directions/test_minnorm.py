@@ -487,3 +487,22 @@ def test_groups_of_one_repeated_point_above_the_enumeration_limit():
     expected = center + generators[:, :, 0, :].sum(axis=1)  # each group is a single point
     np.testing.assert_allclose(points, expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(weights.sum(axis=2), 1.0, atol=1e-12)
+
+
+def test_a_direction_entry_at_rounding_on_a_kink_is_zero_and_the_direction_descends():
+    """Paper-7.1 near its solution (ε = 1e-8): x1 ≈ 5e-10 at a node, so both pieces of |x1| are
+    δ-active, and the min-norm point's x1 entry is 0 up to rounding. Kept, that rounding
+    (3e-17) times the kink's generators (±1) outweighed ‖G‖² ≈ 2e-18 and the direction ascended."""
+    import numpy as np
+
+    from qdframe.descent import make_direction
+    from qdframe.quasidifferential import Quasidifferential, SimplexSum
+
+    center = np.array([[1.77761619e-08, 4.32537339e-11, -3.08350642e-11, -1.39695075e-09]])
+    generators = np.array([[[[1.0, 0.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0]]]])
+    sub = SimplexSum(center, generators, np.ones((1, 1, 2), dtype=bool))
+    sup = SimplexSum(np.array([[6.70075107e-10, 0.0, 0.0, 0.0]]), np.zeros((1, 0, 1, 4)), np.zeros((1, 0, 1), dtype=bool))
+    direction = make_direction("native").from_quasidifferential(Quasidifferential(sub, sup), np.array([0.05]))
+    assert direction.step[0, 0] == 0.0
+    assert np.allclose(direction.step[0, 1:], -center[0, 1:], rtol=1e-12, atol=0)
+    assert direction.slope < 0 and direction.slope == pytest.approx(-0.05 * np.sum(direction.step**2), rel=1e-9)
