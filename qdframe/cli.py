@@ -61,7 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--nodes", type=integer(2),
                        help="a fixed grid of N ≥ 2 points, `solved` when its error estimate meets 1e-6 (without "
                             "--nodes: the mesh is refined to --accuracy from 21 points; with --accuracy: the first mesh)")
-    solve.add_argument("--max-iter", type=integer(0), default=500, help="iteration budget (default 500)")
+    solve.add_argument("--max-iter", type=integer(0),
+                       help="iteration budget (default 500; to an accuracy, the direction's: 5000 for the paper's "
+                            "min-norm directions)")
     solve.add_argument("--continuation", type=continuation, metavar="auto|none|N,N,..",
                        help="coarser grids to solve on first, e.g. 11,101; auto: the direction's ladder below N "
                             "(gauss-newton 101, 301, 1001, 3001, ...; the paper's method 11, 101, 1001, ...); "
@@ -251,11 +253,16 @@ def _solve(args: argparse.Namespace) -> int:
 
         grid = (f"on {args.nodes} nodes" if args.nodes and not args.accuracy else
                 f"from {args.nodes or ACCURACY_START_NODES} points to accuracy {args.accuracy or DEFAULT_ACCURACY:g}")
-        print(f"solving {model.name} {grid} with {args.direction}, budget {args.max_iter} iterations …",
+        budget = args.max_iter
+        if budget is None:
+            from .descent import DEFAULT_MAX_ITER
+
+            budget = direction.certified_max_iter if args.accuracy or not args.nodes else DEFAULT_MAX_ITER
+        print(f"solving {model.name} {grid} with {args.direction}, budget {budget} iterations …",
               end="", file=sys.stderr, flush=True)
     try:
         result = solve(model, direction=direction, estimate=not args.no_estimate,
-                       progress=_progress_printer(args.max_iter) if show_progress else None,
+                       progress=_progress_printer(budget) if show_progress else None,
                        **{name: getattr(args, name) for name in SOLVE_OPTIONS})
     finally:  # end the progress line, also before an error's line
         if show_progress:

@@ -85,7 +85,7 @@ def solve(
     direction: str | DirectionSolver = "gauss-newton",
     line_search: str | LineSearch | None = None,
     *,
-    max_iter: int = 500,
+    max_iter: int | None = None,
     tol: float | None = None,
     delta: float = 1e-3,
     eps: float = 1e-2,
@@ -201,12 +201,14 @@ def solve(
             continuation = "none" if continuation is None else continuation
     final = Grid(model.T, nodes, scheme) if mesh is None else Grid.from_mesh(_mesh_times(mesh, model.T), scheme)
     nodes = final.nodes
+    solver = make_direction(direction)
+    if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
+        max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
     options = DescentOptions(
         max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
         residual_tol=residual_tol, eps_floor=eps if eps_floor is None and not refining else
         (EPS_FLOOR if eps_floor is None else eps_floor),
     )
-    solver = make_direction(direction)
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
     if continuation is None and starts.motion() is not None:
         continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
@@ -295,6 +297,7 @@ def solve(
 
 
 DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
+DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
 DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`nodes` is required for one)
 ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
 ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3

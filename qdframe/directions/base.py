@@ -98,6 +98,8 @@ class DirectionSolver(ABC):
     # its step is a Newton step: where the descent stalls it may take a few whole (γ = 1) to
     # leave a kink (descent._watchdog); the paper's min-norm directions are not
     full_steps: ClassVar[bool] = False
+    # the iteration budget of a certified solve (solve's max_iter=None where the mesh is refined)
+    certified_max_iter: ClassVar[int] = 500
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional` (and before a watchdog round of full steps:
@@ -136,6 +138,8 @@ class MinNormDirection(DirectionSolver):
     """
 
     default_continuation: ClassVar[str] = "auto"
+    # first order: carried on with ε and δ shrinking, paper-7.1 is certified after 4726 iterations
+    certified_max_iter: ClassVar[int] = 5000
 
     @abstractmethod
     def min_norm(
