@@ -41,6 +41,7 @@ active-set iteration from the active set it points to (``qp_polish``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -602,8 +603,8 @@ class _System:
         )
         return qp, slice(0, self.size)
 
-    def _solve_qp(self, hessian, gradient: np.ndarray, backend: StepQPSolver, polish: bool,
-                  previous: StepSolution | None) -> tuple[np.ndarray, float, float]:
+    def _solve_qp(self, hessian: Callable[[bool], sp.csc_matrix], gradient: np.ndarray, backend: StepQPSolver,
+                  polish: bool, previous: StepSolution | None) -> tuple[np.ndarray, float, float]:
         """The step by a general QP backend (:mod:`.step_qp`) on :meth:`_step_qp`: its raw
         solution, polished by the active-set iteration from the active set it points to where
         `polish` (the exact step where that settles), else kept where its KKT error is ≤
