@@ -26,6 +26,7 @@ from .estimates import Estimate, Resolve, estimate, like
 from .functional import Functional
 from .grid import Grid, make_scheme
 from .result import SolveResult
+from .status import Status
 from .switches import switch_times
 
 SWITCH_SETTLED = 1e-12  # relative to T: a switch time that moves less between rounds has settled
@@ -84,24 +85,24 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
     the history), `companion` is the estimate's solver; `scheme` takes over from the first
     solve's implicit Euler once its switches have settled."""
     scheme_name = make_scheme(scheme).name
-    if result.status == "stationary":  # not the budget: another scheme may meet the conditions
+    if result.status == Status.STATIONARY:  # not the budget: another scheme may meet the conditions
         fallback = like(functional, Grid(functional.grid.T, FALLBACK_NODES, FALLBACK_SCHEME))
         retried = own(fallback, result)
-        if retried.status != "solved":
+        if retried.status != Status.SOLVED:
             return Certified(functional, result, Estimate(None, None, detail=f"the first solve ended {result.status}"),
                              f"the first solve ended {result.status}, and on {FALLBACK_NODES} points of "
                              f"{FALLBACK_SCHEME} {retried.status}")
         functional, result = fallback, retried
-    elif result.status != "solved":
+    elif result.status != Status.SOLVED:
         return Certified(functional, result, Estimate(None, None, detail=f"the first solve ended {result.status}"))
     else:
         functional, result = settle_switches(functional, result, own)
-        if result.status == "solved" and scheme_name != functional.grid.scheme.name:
+        if result.status == Status.SOLVED and scheme_name != functional.grid.scheme.name:
             functional = like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme, functional.grid.switches))
             result = own(functional, result)
     best: Certified | None = None
     note, spent = "", []
-    while result.status == "solved":
+    while result.status == Status.SOLVED:
         functional, result = settle_switches(functional, result, own)
         target = tolerance(accuracy, result, functional)
         found = _timed(functional, result, companion, certificate, spent, target)
@@ -166,7 +167,7 @@ def settle_switches(functional: Functional, result: SolveResult, resolve: Resolv
     before: tuple[np.ndarray, np.ndarray] | None = None  # (pins, located) of the round before
     change = np.inf
     for _ in range(SWITCH_ROUNDS):
-        if times.size == 0 or result.status != "solved":
+        if times.size == 0 or result.status != Status.SOLVED:
             break
         target = times
         if before is not None and before[0].size == pins.size == times.size:
@@ -181,7 +182,7 @@ def settle_switches(functional: Functional, result: SolveResult, resolve: Resolv
             break
         pinned = like(functional, Grid.from_mesh(tau, functional.grid.scheme, target))
         attempt = resolve(pinned, result)
-        if attempt.status != "solved":  # keep the mesh and solution that were solved: the switches stay where they are
+        if attempt.status != Status.SOLVED:  # keep the mesh and solution that were solved: the switches stay where they are
             break
         functional, result = pinned, attempt
         moved = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)

@@ -263,16 +263,16 @@ def solve(
         history += [shift(record) for record in result.history]
         per_grid[index] += result.iterations
         earlier = [result] + ([_iterate(functional, start)] if from_stage and result.iterations else [])
-        if result.status == "failed":
+        if result.status == Status.FAILED:
             if functional is not stages[-1]:
                 result.message = f"on the grid of {count} nodes{' (band start)' if functional.signs != signs else ''}: {result.message}"
             break
     first = functional.initial_point()  # the returned iterate is never worse than the model's start
-    if result.status != "failed" and functional.objective(first) < result.objective:
+    if result.status != Status.FAILED and functional.objective(first) < result.objective:
         reached = result.message.partition("; ")[0]  # how the descent ended, not its diagnosis of that iterate
         result = descend(functional, solver, search, dataclasses.replace(options, max_iter=0), None, first)
         unmet = result.message.partition("; ")[2]  # the diagnosis of the start, which is returned
-        result.status = "stationary"
+        result.status = Status.STATIONARY
         result.message = (f"{reached}; the model's start is better than the iterate reached: returned unchanged"
                           + (f"; {unmet}" if unmet else ""))
     result.history = history
@@ -287,11 +287,11 @@ def solve(
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale,
                       "uniform": functional.grid.uniform}
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
-    if result.status == "max_iter":  # the whole budget, and any remark of the last descent after "; "
+    if result.status == Status.MAX_ITER:  # the whole budget, and any remark of the last descent after "; "
         remark = result.message.partition("; ")[2]
         result.message = (f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
                           + (f"; {remark}" if remark else ""))
-    elif result.status != "solved" and len(grids) > 1:
+    elif result.status != Status.SOLVED and len(grids) > 1:
         result.message += f"; {result.iterations} iterations: {spent}"
     return result
 
@@ -527,7 +527,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     # minus the one before is that iteration alone (`qdframe bench scale`'s s/iter)
     history = [IterationRecord(0, terms.objective, terms.I, 0.0, 0.0, float("nan"), functional.boundary_error(xi),
                                time.perf_counter() - clock, nodes)]
-    status, message = "max_iter", f"{options.max_iter} iterations spent"
+    status, message = Status.MAX_ITER, f"{options.max_iter} iterations spent"
     weights = functional.weights
     rejected, rejected_label = 0, ""  # trial points where the model was NaN/inf, and the last piece named
     stalled: _Trial | None = None
@@ -567,14 +567,14 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
             if terms.objective <= options.tol and terms.I <= options.tol:
                 found = certify.checks(functional, xi, options.residual_tol)
                 if not certify.failures(found):
-                    status, message = "solved", ""
+                    status, message = Status.SOLVED, ""
                     break
                 uncertified.append(max(check.ratio for check in found))
                 if (len(uncertified) > window
                         and uncertified[-1] * CERTIFY_SHRINK > uncertified[-1 - window]):
                     if escape():
                         continue
-                    status, message = "stationary", (f"the pointwise checks shrank by less than {CERTIFY_SHRINK:g}× in "
+                    status, message = Status.STATIONARY, (f"the pointwise checks shrank by less than {CERTIFY_SHRINK:g}× in "
                                                      f"{window} iterations with I ≤ tol")
                     break
             if iteration > options.max_iter:
@@ -587,12 +587,12 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                     eps, delta = shrunk, delta * shrunk / eps
                     uncertified.clear()
                     continue
-                status, message = "stationary", f"deviation {deviation:.2e} ≤ ε at every node"
+                status, message = Status.STATIONARY, f"deviation {deviation:.2e} ≤ ε at every node"
                 break
             if direction.stationary:
                 if escape():
                     continue
-                status, message = "stationary", f"{solver.name}: no further decrease predicted"
+                status, message = Status.STATIONARY, f"{solver.name}: no further decrease predicted"
                 break
             step = _keep_start(functional, solver, direction.step)
             trials: list[_Trial] = []
@@ -624,7 +624,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                     break
                 if escape():
                     continue
-                status, message = "stationary", "no step along the direction decreases the objective"
+                status, message = Status.STATIONARY, "no step along the direction decreases the objective"
                 break
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
                 flooded = (iteration, xi + bad[-1].gamma * step, bad[-1].error)
@@ -646,7 +646,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
             if progress is not None:
                 progress(record)
     except BackendError as exc:
-        status, message = "failed", str(exc)
+        status, message = Status.FAILED, str(exc)
     except ModelOutputError as exc:  # at the accepted iterate (its gradients): nothing to return
         raise _located(functional, xi, exc, f"the iterate after {len(history) - 1} iterations") from exc
     if stalled is not None:
@@ -660,9 +660,9 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                        f"{rejected} trial points rejected where the model is non-finite (the limit is {REJECTED_LIMIT}): "
                        "the descent keeps stepping where the model is not defined; make it finite there, or keep "
                        "the states away from it (in the sets, or by the start)") from error
-    if eps < options.eps and status != "solved":
+    if eps < options.eps and status != Status.SOLVED:
         message += f"; ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else "")
-    if rejected and status != "solved":
+    if rejected and status != Status.SOLVED:
         message += (f"; {rejected} line-search trial point(s) rejected where the model is non-finite"
                     + (f" (last: {rejected_label})" if rejected_label else ""))
     return _result(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status, message,
@@ -820,14 +820,14 @@ def _result(functional, solver, search, options, xi, status, message, history, e
     model = functional.model
     terms = functional.terms(xi)
     residuals = functional.residuals(xi)
-    if status == "solved":
+    if status == Status.SOLVED:
         disagreement = _residuals_disagree(functional, residuals, terms.I)
         if disagreement:
-            status, message = "failed", f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
+            status, message = Status.FAILED, f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
     found = certify.checks(functional, xi, options.residual_tol)
-    if status != "solved" and terms.objective <= options.tol and terms.I <= options.tol:
+    if status != Status.SOLVED and terms.objective <= options.tol and terms.I <= options.tol:
         message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {certify.failures(found)}"
-    if status in ("stationary", "max_iter") and terms.I > options.tol:  # I bounded away from 0: name where it sits
+    if status in (Status.STATIONARY, Status.MAX_ITER) and terms.I > options.tol:  # I bounded away from 0: name where it sits
         diagnosis = unmet_conditions(functional, xi, options.residual_tol)
         message += f"; {diagnosis}" if diagnosis else ""
     x, z = functional.split(xi)

@@ -60,6 +60,7 @@ import numpy as np
 from .functional import Functional
 from .grid import Grid
 from .result import SolveResult
+from .status import Status
 from .switches import switch_times
 
 BISECTION, REPLAY = "bisection", "replay"
@@ -118,7 +119,7 @@ def estimate(functional: Functional, result: SolveResult, resolve: Resolve, cert
     with one solution that the integrator cannot carry out falls back to bisection. Given
     the `target` it is held against, a replay already above it skips measuring its own
     integration error (the estimate cannot certify either way)."""
-    if result.status != "solved":
+    if result.status != Status.SOLVED:
         return Estimate(None, None, detail=f"the result is {result.status}")
     chosen = certificate or certificate_for(functional)
     if chosen == REPLAY:
@@ -136,7 +137,7 @@ def bisection(functional: Functional, result: SolveResult, resolve: Resolve) -> 
     """The estimate from a second solve on the bisected mesh (module docstring)."""
     finer = like(functional, functional.grid.bisected())
     companion = resolve(finer, result)
-    if companion.status != "solved":
+    if companion.status != Status.SOLVED:
         return Estimate(None, None, BISECTION, f"the solve on the bisected grid ({companion.nodes} nodes) ended "
                         f"{companion.status}", companion)
     grid, model = functional.grid, functional.model

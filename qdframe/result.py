@@ -76,13 +76,13 @@ class SolveResult:
     @property
     def solved(self) -> bool:
         """Certified: the pointwise checks pass and the error estimate meets the target."""
-        return self.status == "solved"
+        return self.status == Status.SOLVED
 
     @property
     def converged(self) -> bool:
         """The discrete problem is solved: every pointwise check passes (`solved`, or
         `uncertified` where the error is not certified within the target)."""
-        return self.status in ("solved", "uncertified")
+        return self.status in (Status.SOLVED, Status.UNCERTIFIED)
 
     def residuals(self) -> dict[str, float]:
         """The pointwise residuals this result has, by short name (boundary, inclusion,

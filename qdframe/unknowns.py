@@ -38,6 +38,7 @@ import numpy as np
 from .errors import InputError
 from .model import BallSwitch, Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
 from .result import SolveResult
+from .status import Status
 
 T_NAME = "T"
 SWEEP_OCTAVES = 6  # a free T's first guess is sought in [T/2, T·2^k], k ≤ this, along the motion from x(0)
@@ -391,10 +392,10 @@ def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
         options={**result.options, "free_T": wrapper.scaled, "T_guess": wrapper.T_guess, "T_start": wrapper.T0,
                  "parameters_start": dict(zip(wrapper.inner.parameter_names, map(float, wrapper.inner.parameters)))},
     )
-    if estimate is not None and out.status == "solved" and out.accuracy is not None:
+    if estimate is not None and out.status == Status.SOLVED and out.accuracy is not None:
         bound = out.accuracy * max(1.0, float(np.max(np.abs(out.x))))
         if estimate > bound:
-            out.status = "uncertified"
+            out.status = Status.UNCERTIFIED
             out.message = (f"{out.message}; the scaled problem is certified, but with T free the error at the "
                            f"model's times, estimate {estimate:.1e}, exceeds the target {bound:.1e}")
     return out
