@@ -217,8 +217,9 @@ def _list(args: argparse.Namespace) -> int:
             writable("--json", args.json)
             Path(args.json).write_text(text + "\n")
         return 0
+    headings = {"step_qps": "step_qps (gauss-newton's step QP: --option qp=NAME):"}
     for kind, entries in listing.items():
-        print(f"{kind}:")
+        print(headings.get(kind, f"{kind}:"))
         width = max((len(e["name"]) for e in entries), default=0)
         for e in entries:
             print(f"  {e['name']:<{width}}  [{e['distribution']}]  {e['description']}")

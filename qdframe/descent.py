@@ -141,7 +141,8 @@ def solve(
     objective (the paper's min-norm directions: where every node's deviation is ≤ ε but the
     iterate is not solved, ε and δ shrink together by 10 and the descent goes on, down to
     ε = `eps_floor`; None: 1e-12 for a certified solve, `nodes`/`mesh` without `accuracy`
-    keep the paper's fixed ε and δ; the result's options give the ε and δ it ended with), `max_iter` when the budget is spent, `failed` when a backend reports an
+    keep the paper's fixed ε and δ; `options["eps"]` and `options["delta"]` are the smallest
+    its descents reached), `max_iter` when the budget is spent, `failed` when a backend reports an
     error mid-run (the message says which).
 
     A line-search trial point where the model returns NaN/inf is rejected (no decrease);
@@ -222,6 +223,7 @@ def solve(
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
     history, result = [], None
+    reached = []  # (ε, δ) each descent of the user's direction ended with (the paper's: shrunk, perhaps)
     first_start = MODEL
     earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
     per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
@@ -260,6 +262,7 @@ def solve(
         stage = dataclasses.replace(stage, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, solver, search, stage, shown, start)
+        reached.append((result.options["eps"], result.options["delta"]))
         history += [shift(record) for record in result.history]
         per_grid[index] += result.iterations
         earlier = [result] + ([_iterate(functional, start)] if from_stage and result.iterations else [])
@@ -281,8 +284,12 @@ def solve(
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     refined = result.options.pop("meshes", [])  # (nodes, iterations) of each mesh an accuracy request solved on
+    reached += result.options.pop("reached", [])
     grids, per_grid = grids + [count for count, _ in refined], per_grid + [used for _, used in refined]
-    result.options = {**result.options, "max_iter": options.max_iter, "start": first_start,
+    # the smallest ε (and its δ) of the solve's descents: where the paper's method got to
+    eps_reached, delta_reached = min(reached) if reached else (options.eps, options.delta)
+    result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,
+                      "start": first_start,
                       "grids": grids, "iterations_per_grid": per_grid,
                       "scheme": functional.grid.scheme.name, "signs": signs, "selection_scale": selection_scale,
                       "uniform": functional.grid.uniform}
@@ -327,7 +334,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
     else on its fixed grid (:func:`adaptive.on_fixed_grid`). `solved` stays only where the
     estimate is ≤ target·max(1, max|x|); a discrete solve whose estimate is larger, or that
     has none, is `uncertified`. Every descent appends to the history."""
-    history, meshes = result.history, []
+    history, meshes, reached = result.history, [], []
     companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
 
     def run(target_functional: Functional, previous: SolveResult, own: bool) -> SolveResult:
@@ -346,6 +353,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
                       stage, shown, start)
         if own:
             meshes.append((target_functional.grid.nodes, out.iterations))
+            reached.append((out.options["eps"], out.options["delta"]))
             elapsed = history[-1].time_s
             history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
                            for r in out.history)
@@ -385,7 +393,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
             if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
                 result.switch_times = switches.polish(result.switch_times, found.switch_times,
                                                       functional.grid.mesh_times)
-    result.options = {**result.options, "estimate_time_s": outcome.seconds}
+    result.options = {**result.options, "estimate_time_s": outcome.seconds, "reached": reached}
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:

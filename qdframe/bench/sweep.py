@@ -238,14 +238,15 @@ def every_direction() -> tuple[list[str], dict[str, str]]:
 
 
 def bench_direction(name: str) -> DirectionSolver:
-    """A direction by a sweep's name: a registered one, or ``NAME[key=value,…]`` with options."""
+    """A direction by a sweep's name: a registered one, or ``NAME[key=value]`` with an option
+    (``gauss-newton[qp=osqp]``; a bad key or value is an InputError)."""
     from ..directions.base import with_options
 
     base, bracket, rest = name.partition("[")
     if not bracket:
         return make_direction(name)
-    if not rest.endswith("]"):
-        raise InputError("--directions", "NAME or NAME[key=value,…]", name)
+    if not rest.endswith("]") or "=" not in rest:
+        raise InputError("--directions", "NAME or NAME[key=value], e.g. gauss-newton[qp=osqp]", name)
     options = dict(item.split("=", 1) for item in rest[:-1].split(",") if "=" in item)
     return with_options(make_direction(base), options)
 
@@ -298,6 +299,8 @@ def plan(
     else:
         for name in directions:
             lookup("directions", _base_direction(name))  # an unknown name is a usage error; an uninstalled one a failed row
+            if name != _base_direction(name):
+                bench_direction(name)  # options: a bad key or value is a usage error, before any run
     searches = list(available("line_searches"))
     for name in line_searches or ():
         lookup("line_searches", name)
@@ -322,12 +325,13 @@ def plan(
                 pairs = sorted(searches)
             else:
                 pairs = [_default_line_search(direction)]
-            ladder = grids if direction == ACCURACY_DIRECTION else other_grids
+            base = _base_direction(direction)  # gauss-newton[qp=osqp]: gauss-newton's knobs
+            ladder = grids if base == ACCURACY_DIRECTION else other_grids
             if every and direction not in DIRECTION_PREFERENCE[:2]:  # the backends: their certified runs alone
                 ladder = ()
             for search in pairs:
                 cases += [Case(model, direction, search, int(n), max_iter, time_limit_s) for n in ladder]
-            if direction == ACCURACY_DIRECTION or every:
+            if base == ACCURACY_DIRECTION or every:
                 search = _default_line_search(direction)
                 cases += [Case(model, direction, search, None, max_iter, time_limit_s, accuracy=float(e))
                           for e in targets]

@@ -52,7 +52,8 @@ from ..errors import BackendError, QdframeError
 from .base import Direction, DirectionSolver, OptionError, number_rule
 from .kkt import KKTSolver, solve_kkt
 from .sparse_rows import RowBlocks
-from .step_qp import KKT_TOL, ActiveSetStep, SparseQP, StepQPSolver, StepSolution, make_step_qp, step_qp_names
+from .step_qp import (KKT_TOL, ActiveSetStep, SparseQP, StepQPSolver, StepSolution, make_step_qp,
+                      step_qp_expected)
 
 if TYPE_CHECKING:
     from ..functional import Functional
@@ -67,9 +68,11 @@ class GaussNewton(DirectionSolver):
     that achieved more than 3/4 of the predicted decrease, doubles after one below 1/4,
     and grows by 2/γ when the line search cut the step to γ < 1/2.
 
-    qp: the step QP's backend (`qdframe list`, step QPs: "active-set", the default, or a
-    general QP solver, :mod:`.step_qp`); qp_polish: polish a general backend's step by the
-    active-set iteration from the active set it points to (exact where it settles).
+    qp: the step QP's backend, by name (`qdframe list`, step_qps: "active-set", the default,
+    or a general QP solver, :mod:`.step_qp`) or as a :class:`~.step_qp.StepQPSolver` instance;
+    qp_polish: polish a general backend's step by the active-set iteration from the active
+    set it points to (exact where it settles). `label` names a backend other than the
+    default: "gauss-newton[qp=osqp]" (the result's `direction`).
     """
 
     name = "gauss-newton"
@@ -83,7 +86,7 @@ class GaussNewton(DirectionSolver):
     mu: float = 1e-10
     mu_min: float = 1e-12
     mu_max: float = 1e8
-    qp: str = ActiveSetStep.name
+    qp: str | StepQPSolver = ActiveSetStep.name
     qp_polish: bool = True
     _state: dict = field(default_factory=dict, repr=False)
     option_rules = {name: number_rule(above=0.0, why="a damping") for name in ("mu", "mu_min", "mu_max")}
@@ -98,11 +101,22 @@ class GaussNewton(DirectionSolver):
         if not self.mu_min <= self.mu <= self.mu_max:
             raise OptionError(type(self).__name__, "mu", f"a number in [mu_min, mu_max] = [{self.mu_min:g}, "
                                                          f"{self.mu_max:g}]", self.mu)
+        if not isinstance(self.qp_polish, bool):
+            raise OptionError(type(self).__name__, "qp_polish", "True or False", self.qp_polish)
+        if isinstance(self.qp, StepQPSolver):  # an instance: a backend of one's own, registered or not
+            self._state["backend"] = self.qp
+            return
         try:
-            self._state["backend"] = make_step_qp(self.qp)
+            self._state["backend"] = make_step_qp(str(self.qp))
         except QdframeError as exc:
-            raise OptionError(type(self).__name__, "qp", "a step-QP backend (qdframe list: step QPs): "
-                              + ", ".join(step_qp_names()), f"{self.qp} ({exc})") from None
+            raise OptionError(type(self).__name__, "qp", step_qp_expected(str(self.qp), exc), self.qp) from None
+
+    @property
+    def label(self) -> str:
+        backend = self._state.get("backend")
+        name = getattr(backend, "label", None) or getattr(self.qp, "label", str(self.qp))
+        options = ([] if name == ActiveSetStep.name else [f"qp={name}"]) + ([] if self.qp_polish else ["qp_polish=false"])
+        return self.name + (f"[{','.join(options)}]" if options else "")
 
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)

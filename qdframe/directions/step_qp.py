@@ -133,6 +133,19 @@ def step_qp_names() -> list[str]:
             for item in ([f"{name}{solver}" for solver in SPARSE_QPSOLVERS] if name.endswith(":") else [name])]
 
 
+def step_qp_expected(name: str, error: Exception) -> str:
+    """The expected form of gauss-newton's `qp` option, with why `name` was refused: the
+    reason a qpsolvers solver is not offered, or the close names."""
+    from ..errors import close_names
+
+    solver = name.partition(":")[2] if name.startswith("qpsolvers:") else ""
+    known = step_qp_names()
+    close = close_names(name, known)
+    why = (f"; {name} is not offered: {NOT_OFFERED[solver]}" if solver in NOT_OFFERED else
+           f"; did you mean {close[0]}?" if close else "")
+    return "a step-QP backend (qdframe list: step_qps): " + ", ".join(known) + why
+
+
 class ActiveSetStep(StepQPSolver):
     """gauss-newton's own active-set iteration (one KKT solve per guess); Clarabel where it does not settle."""
 
@@ -233,7 +246,7 @@ QPSOLVERS_SETTINGS: dict[str, dict[str, Any]] = {
 
 
 class QpsolversStep(StepQPSolver):
-    """The step QP by a sparse qpsolvers solver: the name `qpsolvers:NAME` (e.g. qpsolvers:proxqp)."""
+    """The step QP by a sparse qpsolvers solver: qpsolvers:NAME, NAME one of clarabel, osqp, proxqp, scs."""
 
     name = "qpsolvers:"
 

@@ -404,3 +404,14 @@ def test_the_time_limit_wrapper_keeps_the_directions_settings():
     wrapped = bench_sweep._Deadline(inner, 60.0)
     for setting in ("name", "default_line_search", "default_continuation", "coarsest_nodes", "ladder_steps"):
         assert getattr(wrapped, setting) == getattr(inner, setting), setting
+
+
+def test_a_direction_with_an_option_is_checked_before_any_run_and_sweeps_gauss_newtons_knobs():
+    with pytest.raises(Exception, match="qp="):
+        bench_sweep.plan("quick", directions=["gauss-newton[qp=nope]"])
+    with pytest.raises(Exception, match=r"NAME\[key=value\]"):
+        bench_sweep.plan("quick", directions=["gauss-newton[qp=osqp"])
+    with pytest.raises(Exception, match="no options"):
+        bench_sweep.plan("quick", directions=["native[qp=osqp]"])
+    sweep = bench_sweep.plan("quick", models=["paper-7.1"], directions=["gauss-newton[qp=osqp]"])
+    assert {case.knob for case in sweep.cases} == {"N=11", "N=41", "N=161", "accuracy=0.001"}

@@ -89,3 +89,32 @@ def test_list_shows_the_step_qp_backends(capsys):
     assert main(["list", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert {"active-set", "clarabel", "osqp", "cvxpy", "qpsolvers:"} <= {e["name"] for e in data["step_qps"]}
+
+
+def test_option_errors_say_why_and_suggest():
+    from qdframe.directions.gauss_newton import GaussNewton
+
+    with pytest.raises(InputError, match="did you mean osqp"):
+        GaussNewton(qp="OSQP")
+    with pytest.raises(InputError, match="qpsolvers:daqp is not offered: a dense solver"):
+        GaussNewton(qp="qpsolvers:daqp")
+    with pytest.raises(InputError, match="qp_polish: expected True or False"):
+        GaussNewton(qp_polish="false")
+
+
+def test_a_backend_instance_of_ones_own_and_the_result_names_it():
+    from qdframe.directions.gauss_newton import GaussNewton
+    from qdframe.directions.step_qp import ClarabelStep
+
+    class Counting(ClarabelStep):
+        calls = 0
+
+        def solve(self, qp, warm=None):
+            Counting.calls += 1
+            return super().solve(qp, warm)
+
+    result = qdframe.solve("paper-7.1", nodes=41, direction=GaussNewton(qp=Counting("counting")), estimate=False,
+                           simulate_start=False)
+    assert Counting.calls == result.iterations >= 1 and "discrete problem is solved" in result.message
+    assert result.direction == "gauss-newton[qp=counting]"
+    assert qdframe.solve("paper-7.1", nodes=11, estimate=False).direction == "gauss-newton"
