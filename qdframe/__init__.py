@@ -6,11 +6,12 @@ The four interfaces: :class:`InclusionModel` (qdframe.model), :class:`DirectionS
 solve flows through them.
 """
 
-from .descent import DescentOptions, load_model, solve
+from .descent import DescentOptions, solve
 from .directions.base import Direction, DirectionSolver, MinNormDirection
 from .errors import BackendError, InputError, ModelOutputError, QdframeError
 from .line_searches.base import LineSearch
 from .model import Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, Surface
+from .registry import load_model
 from .result import SolveResult
 
 __version__ = "0.1.0"

@@ -232,7 +232,8 @@ SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "eps
 
 
 def _solve(args: argparse.Namespace) -> int:
-    from .descent import load_model, make_direction, solve
+    from .descent import solve
+    from .registry import load_model, make_direction
     from .directions.base import with_options
 
     to_stdout = args.json == "-"  # the JSON alone on stdout; the summary goes to stderr
@@ -285,7 +286,7 @@ def _solve(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from .descent import load_model
+    from .registry import load_model
     from .simulate import simulate
 
     if args.json:

@@ -22,7 +22,7 @@ from .line_searches.base import LineSearch
 from .model import InclusionModel
 from .schemes import Scheme
 from .estimates import CERTIFICATES
-from .registry import lookup, plugin_code
+from .registry import load_model, lookup, make_direction, make_line_search, plugin_code
 from .result import IterationRecord, SolveResult
 from .start import MODEL, Starts
 from .status import Status
@@ -56,27 +56,6 @@ class DescentOptions:
         if self.eps_floor > self.eps:
             raise InputError("eps_floor", f"a number ≤ eps = {self.eps:g} (eps_floor = eps: ε and δ fixed)",
                              self.eps_floor)
-
-
-def load_model(name: str, **overrides) -> InclusionModel:
-    """A registered model by name; `overrides` are T, x0, end_values. An exception of the
-    model's own code (its `__init__`, `sets()`, …) is a PluginCodeError naming it."""
-    entry = lookup("models", name)
-    with plugin_code(entry.obj, "__init__"):
-        return entry.obj(**overrides)
-
-
-def make_direction(direction: str | DirectionSolver) -> DirectionSolver:
-    if isinstance(direction, DirectionSolver):
-        return direction
-    entry = lookup("directions", str(direction))
-    return entry.obj.from_name(direction) if hasattr(entry.obj, "from_name") else entry.obj()
-
-
-def make_line_search(line_search: str | LineSearch) -> LineSearch:
-    if isinstance(line_search, LineSearch):
-        return line_search
-    return lookup("line_searches", str(line_search)).obj()
 
 
 def solve(

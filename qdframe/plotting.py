@@ -290,7 +290,7 @@ def _resolve_model(result: SolveResult, model: InclusionModel | None) -> tuple[I
     """The given model, else the registered one of the result's name (with a reason if none)."""
     if model is not None:
         return model, ""
-    from .descent import load_model
+    from .registry import load_model
     from .errors import QdframeError
 
     try:

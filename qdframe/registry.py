@@ -1,4 +1,6 @@
-"""Registries of models, direction solvers and line searches, fed by entry points.
+"""Registries of models, direction solvers, line searches, schemes and step QPs, fed by
+entry points, and the factories that build one by name (`load_model`, `make_direction`,
+`make_line_search`).
 
 qdframe's own built-ins are declared in its pyproject under the same groups as any
 plugin's (`qdframe.models`, `qdframe.directions`, `qdframe.line_searches`,
@@ -17,6 +19,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib.metadata import EntryPoint, entry_points
+from typing import Any
 
 from .errors import PluginCodeError, PluginLoadError, QdframeError, UnknownNameError
 
@@ -163,3 +166,28 @@ def lookup(kind: str, name: str) -> Entry:
     if entry is None:
         raise PluginLoadError(KIND_LABEL[kind], name, _distribution(points[key]))
     return entry
+
+
+# ------------------------------------------------------------------ the factories
+def load_model(name: str, **overrides) -> Any:
+    """A registered model (an InclusionModel) by name; `overrides` are T, x0, end_values. An exception of the
+    model's own code (its `__init__`, `sets()`, …) is a PluginCodeError naming it."""
+    entry = lookup("models", name)
+    with plugin_code(entry.obj, "__init__"):
+        return entry.obj(**overrides)
+
+
+def make_direction(direction: Any) -> Any:
+    """A direction solver (a DirectionSolver) by registered name ('prefix:arg' names too), or
+    the instance given. The registry sits below the classes it builds: it imports none."""
+    if not isinstance(direction, str):
+        return direction
+    entry = lookup("directions", str(direction))
+    return entry.obj.from_name(direction) if hasattr(entry.obj, "from_name") else entry.obj()
+
+
+def make_line_search(line_search: Any) -> Any:
+    """A line search (a LineSearch) by registered name, or the instance given."""
+    if not isinstance(line_search, str):
+        return line_search
+    return lookup("line_searches", str(line_search)).obj()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from qdframe.cli import main
-from qdframe.descent import make_direction
+from qdframe.registry import make_direction
 from qdframe.directions.base import with_options
 from qdframe.errors import InputError
 from qdframe.result import _grids

@@ -13,7 +13,7 @@ import pytest
 import qdframe
 from qdframe import registry
 from qdframe.cli import main
-from qdframe.descent import make_direction
+from qdframe.registry import make_direction
 from qdframe.directions.base import with_options
 from qdframe.errors import InputError, PluginCodeError, UnknownNameError
 from qdframe.status import EXIT_CODES, EXIT_ERROR, EXIT_USAGE, Status

@@ -37,7 +37,7 @@ def test_solve_help_gives_the_continuation_default(capsys):
 
 def test_the_default_continuation_is_auto_for_both_directions():
     for direction in ("gauss-newton", "native"):
-        assert qdframe.descent.make_direction(direction).default_continuation == "auto"
+        assert qdframe.registry.make_direction(direction).default_continuation == "auto"
     result = qdframe.solve("paper-7.1", nodes=1001, max_iter=3)
     assert result.options["grids"][0] == 101  # gauss-newton's ladder: 101, 301, then 1001
     assert np.all(np.diff(result.options["grids"]) > 0)

@@ -170,7 +170,7 @@ def test_the_command_line_prints_one_error_line_and_exits_1(monkeypatch, capsys)
             return registry.Entry("models", name, "test", "test:NaNPastThreshold", NaNPastThreshold)
         return real(kind, name)
 
-    monkeypatch.setattr("qdframe.descent.lookup", lookup)
+    monkeypatch.setattr("qdframe.registry.lookup", lookup)
     assert cli_main(["solve", "test-nan-mid-run", "--nodes", "21"]) == 1
     captured = capsys.readouterr()
     assert captured.out == ""  # no summary

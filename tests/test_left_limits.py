@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.descent import DescentOptions, _watchdog, make_direction
+from qdframe.descent import DescentOptions, _watchdog
+from qdframe.registry import make_direction
 from qdframe.directions.base import Direction, DirectionSolver
 from qdframe.directions.gauss_newton import _System
 from qdframe.functional import Functional

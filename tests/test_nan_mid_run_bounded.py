@@ -76,7 +76,7 @@ def test_the_command_line_prints_the_one_line_and_exits_non_zero(monkeypatch, ca
             return registry.Entry("models", name, "test", "test:NaNPast09", model)
         return real(kind, name)
 
-    monkeypatch.setattr("qdframe.descent.lookup", lookup)
+    monkeypatch.setattr("qdframe.registry.lookup", lookup)
     assert main(["solve", "test-nan-mid-run", "--nodes", "21"]) == EXIT_ERROR
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1 and "trial points rejected where the model is non-finite" in err

@@ -7,7 +7,8 @@ import pytest
 
 import qdframe
 import qdframe.directions.gauss_newton
-from qdframe.descent import grid_schedule, make_direction
+from qdframe.descent import grid_schedule
+from qdframe.registry import make_direction
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 
@@ -228,7 +229,8 @@ def test_the_starts_evaluation_is_timed_in_its_own_record(monkeypatch):
     import types
 
     import qdframe.descent
-    from qdframe.descent import DescentOptions, descend, make_line_search
+    from qdframe.descent import DescentOptions, descend
+    from qdframe.registry import make_line_search
 
     model = qdframe.load_model("paper-7.1")
     functional = Functional(model, Grid(model.T, 11, model.default_scheme))

@@ -240,7 +240,7 @@ def test_command_line_free_T_and_parameter(tmp_path, capsys):
 def test_gauss_newton_keeps_a_constant_state_one_unknown():
     """The step moves T (and p) by one amount at every node and never their z: the constant
     states are one unknown in the KKT systems (qdframe/directions/gauss_newton.py)."""
-    from qdframe.descent import make_direction
+    from qdframe.registry import make_direction
     from qdframe.functional import Functional
     from qdframe.grid import Grid
 

@@ -469,7 +469,7 @@ def add_check_parser(subparsers) -> argparse.ArgumentParser:
 
 def main_check(args: argparse.Namespace) -> int:
     """Run `qdframe check-model`: print the table; a failure raises ModelCheckError (exit 1)."""
-    from ..descent import load_model
+    from ..registry import load_model
 
     if args.json:
         parent = Path(args.json).expanduser().resolve().parent

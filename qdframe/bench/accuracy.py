@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..descent import load_model, solve
+from ..descent import solve
+from ..registry import load_model
 from ..errors import InputError
 from ..progress import bar
 from ..registry import available

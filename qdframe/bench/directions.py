@@ -31,7 +31,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..descent import DescentOptions, descend, load_model, make_line_search
+from ..descent import DescentOptions, descend
+from ..registry import load_model, make_line_search
 from ..directions.base import MinNormDirection
 from ..directions.native import NativeDirection
 from ..errors import BackendError, QdframeError
@@ -117,7 +118,7 @@ def installed_directions(names: list[str] | None = None) -> tuple[dict[str, MinN
 
     A backend whose package is missing is skipped (with the reason); an unknown name in
     `names` raises UnknownNameError."""
-    from ..descent import make_direction
+    from ..registry import make_direction
 
     explicit = names is not None
     if names is None:

@@ -14,7 +14,8 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..descent import load_model, solve
+from ..descent import solve
+from ..registry import load_model
 from ..progress import bar
 
 SUITE = (

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..descent import load_model, solve
+from ..descent import solve
+from ..registry import load_model
 from ..directions.minnorm import min_norm_point
 from ..directions.native import NativeDirection
 from ..functional import Functional

@@ -309,7 +309,7 @@ INPUTS: dict[str, Callable] = {
 @lru_cache(maxsize=None)
 def cross_check(name: str) -> str:
     """How `name`'s reference was made, with its independent cross-check where there is one."""
-    from ..descent import load_model
+    from ..registry import load_model
 
     model = load_model(name)
     which = kind(model)

@@ -112,7 +112,8 @@ def best(measured: Sequence[Cell]) -> Cell:
 
 def measure(path: str, model_name: str, nodes: int, iterations: int = ITERATIONS) -> Cell:
     """One cell, in this process (run() calls it in a child)."""
-    from ..descent import DescentOptions, descend, load_model, make_direction, make_line_search
+    from ..descent import DescentOptions, descend
+    from ..registry import load_model, make_direction, make_line_search
     from ..functional import Functional
     from ..grid import Grid
 

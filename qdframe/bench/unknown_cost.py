@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..descent import load_model, make_direction
+from ..registry import load_model, make_direction
 from ..functional import Functional
 from ..grid import Grid
 from ..unknowns import Unknowns, restated

@@ -158,7 +158,7 @@ def test_command_fails_with_one_line_and_exit_status_1(monkeypatch, capsys):
             return registry.Entry("models", "broken", "test", "test:Broken", broken)
         return real(kind, name)
 
-    monkeypatch.setattr("qdframe.descent.lookup", lookup)
+    monkeypatch.setattr("qdframe.registry.lookup", lookup)
     with pytest.raises(ModelCheckError, match="wrong gradient"):
         main_check(_parse(["check-model", "broken"]))
     capsys.readouterr()

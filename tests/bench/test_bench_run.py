@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from qdframe.cli import main as qdframe_main
-from qdframe.descent import make_direction
+from qdframe.registry import make_direction
 from qdframe.bench import peers as bench_peers
 from qdframe.bench import sweep as bench_sweep
 from qdframe.bench.report import (common_models, ranking, ratios, shifted_geometric_mean, solver_times, summarize,

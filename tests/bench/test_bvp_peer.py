@@ -26,7 +26,7 @@ import pytest
 
 from qdframe.bench.bvp_peer import BVP_MODELS, STICK_SLIP_FRICTION, STICK_SLIP_NAME, boundary_conditions, \
     run_solve_bvp, statement
-from qdframe.descent import load_model
+from qdframe.registry import load_model
 from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.grid import Grid

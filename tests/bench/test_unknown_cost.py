@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from qdframe.bench.unknown_cost import per_iteration, run, table
-from qdframe.descent import load_model
+from qdframe.registry import load_model
 from qdframe.unknowns import Unknowns, restated
 
 

@@ -495,7 +495,7 @@ def test_a_direction_entry_at_rounding_on_a_kink_is_zero_and_the_direction_desce
     (3e-17) times the kink's generators (±1) outweighed ‖G‖² ≈ 2e-18 and the direction ascended."""
     import numpy as np
 
-    from qdframe.descent import make_direction
+    from qdframe.registry import make_direction
     from qdframe.quasidifferential import Quasidifferential, SimplexSum
 
     center = np.array([[1.77761619e-08, 4.32537339e-11, -3.08350642e-11, -1.39695075e-09]])

@@ -9,7 +9,7 @@ import scipy.sparse as sp
 
 import qdframe
 from qdframe.cli import main
-from qdframe.descent import make_direction
+from qdframe.registry import make_direction
 from qdframe.directions.base import with_options
 from qdframe.directions.step_qp import SparseQP, make_step_qp, step_qp_names
 from qdframe.errors import InputError
