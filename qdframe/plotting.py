@@ -34,13 +34,12 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from .result import SolveResult
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # types only: a result draws itself through this module (SolveResult.plot)
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from .model import InclusionModel
+    from .result import SolveResult
 
 VELOCITY_MODES = ("auto", "nodes", "means")
 POINT_WIDTH = 1e-12  # relative: an interval [lo, hi] no wider than this is drawn as a point

@@ -32,13 +32,16 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import InputError
 from .model import BallSwitch, Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
-from .result import SolveResult
 from .status import Status
+
+if TYPE_CHECKING:  # unwrap's types only: the results sit above the restated model
+    from .result import SolveResult
 
 T_NAME = "T"
 SWEEP_OCTAVES = 6  # a free T's first guess is sought in [T/2, T·2^k], k ≤ this, along the motion from x(0)
