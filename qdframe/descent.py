@@ -184,10 +184,11 @@ def solve(
     solver = make_direction(direction)
     if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
         max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
+    if eps_floor is None:  # a fixed grid keeps the paper's ε and δ
+        eps_floor = EPS_FLOOR if refining else eps
     options = DescentOptions(
         max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
-        residual_tol=residual_tol, eps_floor=eps if eps_floor is None and not refining else
-        (EPS_FLOOR if eps_floor is None else eps_floor),
+        residual_tol=residual_tol, eps_floor=eps_floor,
     )
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
     if continuation is None and starts.motion() is not None:
@@ -202,7 +203,7 @@ def solve(
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
     history, result = [], None
-    reached = []  # (ε, δ) each descent of the user's direction ended with (the paper's: shrunk, perhaps)
+    shrunk_to = []  # (ε, δ) each descent of the user's direction ended with (the paper's: shrunk, perhaps)
     first_start = MODEL
     earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
     per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
@@ -241,7 +242,7 @@ def solve(
         stage = dataclasses.replace(stage, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, solver, search, stage, shown, start)
-        reached.append((result.options["eps"], result.options["delta"]))
+        shrunk_to.append((result.options["eps"], result.options["delta"]))
         history += [shift(record) for record in result.history]
         per_grid[index] += result.iterations
         earlier = [result] + ([_iterate(functional, start)] if from_stage and result.iterations else [])
@@ -263,10 +264,10 @@ def solve(
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     refined = result.options.pop("meshes", [])  # (nodes, iterations) of each mesh an accuracy request solved on
-    reached += result.options.pop("reached", [])
+    shrunk_to += result.options.pop("shrunk_to", [])
     grids, per_grid = grids + [count for count, _ in refined], per_grid + [used for _, used in refined]
     # the smallest ε (and its δ) of the solve's descents: where the paper's method got to
-    eps_reached, delta_reached = min(reached) if reached else (options.eps, options.delta)
+    eps_reached, delta_reached = min(shrunk_to) if shrunk_to else (options.eps, options.delta)
     result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,
                       "start": first_start,
                       "grids": grids, "iterations_per_grid": per_grid,
@@ -313,7 +314,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
     else on its fixed grid (:func:`adaptive.on_fixed_grid`). `solved` stays only where the
     estimate is ≤ target·max(1, max|x|); a discrete solve whose estimate is larger, or that
     has none, is `uncertified`. Every descent appends to the history."""
-    history, meshes, reached = result.history, [], []
+    history, meshes, shrunk_to = result.history, [], []
     companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
 
     def run(target_functional: Functional, previous: SolveResult, own: bool) -> SolveResult:
@@ -332,7 +333,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
                       stage, shown, start)
         if own:
             meshes.append((target_functional.grid.nodes, out.iterations))
-            reached.append((out.options["eps"], out.options["delta"]))
+            shrunk_to.append((out.options["eps"], out.options["delta"]))
             elapsed = history[-1].time_s
             history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
                            for r in out.history)
@@ -372,7 +373,7 @@ def _certify(functional: Functional, result: SolveResult, solver: DirectionSolve
             if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
                 result.switch_times = switches.polish(result.switch_times, found.switch_times,
                                                       functional.grid.mesh_times)
-    result.options = {**result.options, "estimate_time_s": outcome.seconds, "reached": reached}
+    result.options = {**result.options, "estimate_time_s": outcome.seconds, "shrunk_to": shrunk_to}
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:

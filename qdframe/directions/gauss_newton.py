@@ -108,8 +108,8 @@ class GaussNewton(DirectionSolver):
             return
         try:
             self._state["backend"] = make_step_qp(str(self.qp))
-        except QdframeError as exc:
-            raise OptionError(type(self).__name__, "qp", step_qp_expected(str(self.qp), exc), self.qp) from None
+        except QdframeError:
+            raise OptionError(type(self).__name__, "qp", step_qp_expected(str(self.qp)), self.qp) from None
 
     @property
     def label(self) -> str:
@@ -133,9 +133,7 @@ class GaussNewton(DirectionSolver):
                          stationary=bool(predicted <= 1e-14 * max(value, 1e-300) or not np.any(per_node)))
 
     def start(self, functional: "Functional") -> None:
-        backend = self._state.get("backend")
-        self._state.clear()
-        self._state["backend"] = backend if backend is not None else make_step_qp(self.qp)
+        self._state = {"backend": self._state["backend"]}  # made by check_options
 
     @property
     def factorizations(self) -> int:
@@ -207,6 +205,7 @@ class _System:
         self.cost = functional.cost_pieces(xi) if functional.cost is not None else None
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
+        self._hinge_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # :meth:`_hinges`
 
     def _constant_columns(self) -> np.ndarray | None:
         """Where each column of the extended unknowns goes in the KKT systems: a constant state
@@ -368,7 +367,13 @@ class _System:
 
     def _hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """The one-sided residuals of φ: rows √w_k·(ℓ_side + ∇ℓ_side·d) for every block,
-        side and node (h_b = max(0, max_side ℓ)), as a matrix and the values √w_k·ℓ."""
+        side and node (h_b = max(0, max_side ℓ)), as a matrix and the values √w_k·ℓ (built
+        once per step: the active-set iteration, the QP and its polish all read them)."""
+        if self._hinge_rows is None:
+            self._hinge_rows = self._assemble_hinges()
+        return self._hinge_rows
+
+    def _assemble_hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
         root_w = np.sqrt(self.f.weights)
         y_cols, z_cols = self.y_cols(), self.z_cols()
         rows = RowBlocks(self.size)  # exactly-zero coefficients left out (:mod:`.sparse_rows`)
@@ -577,9 +582,9 @@ class _System:
             slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
         return slope
 
-    def _step_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> tuple[SparseQP, slice]:
+    def _step_qp(self, hessian: sp.csc_matrix, gradient: np.ndarray) -> SparseQP:
         """The step model as a sparse QP in v = [d | t | s] (the same model as the active-set
-        iteration's: one slack per side of every block), and where d sits in v:
+        iteration's: one slack per side of every block):
 
         min ½dᵀHd + gᵀd + Σ_k w_k t_k + (λ/2)·Σ s² + Σ_k w_k ∇b_p*·d_k
         s.t. E d = 0;  a_q + ∇a_q·d_k ≤ t_k (every piece q of each cost max-group);
@@ -615,7 +620,7 @@ class _System:
             G=sp.vstack([part for part, _ in pieces] + [hinges, slack], format="csc"),
             h=np.concatenate([bound for _, bound in pieces] + [-values, np.zeros(n_s)]),
         )
-        return qp, slice(0, self.size)
+        return qp
 
     def _solve_qp(self, hessian: Callable[[bool], sp.csc_matrix], gradient: np.ndarray, backend: StepQPSolver,
                   polish: bool, previous: StepSolution | None) -> tuple[np.ndarray, float, float]:
@@ -623,12 +628,12 @@ class _System:
         solution, polished by the active-set iteration from the active set it points to where
         `polish` (the exact step where that settles), else kept where its KKT error is ≤
         KKT_TOL; a backend that ran out of progress at its own precision gives no step."""
-        qp, d_part = self._step_qp(hessian(False), gradient)
+        qp = self._step_qp(hessian(False), gradient)
         fits = previous is not None and (previous.v.size, previous.y.size, previous.z.size) == (
             qp.size, qp.b.size, qp.h.size)
         solution = backend.solve(qp, previous if fits else None)
         self.qp_solution = solution
-        d = solution.v[d_part]
+        d = solution.v[: self.size]
         matrix, values = self._hinges()
         max_groups, min_groups = self.cost if self.cost is not None else ([], [])
         min_linear = self._min_linear(min_groups)

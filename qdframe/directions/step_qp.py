@@ -38,7 +38,8 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import BackendError, InputError
+from ..errors import BackendError, InputError, close_names
+from ..registry import lookup, names
 from .qp import require
 
 KKT_TOL = 1e-4  # a raw solution's largest relative KKT error (kkt_error) for it to be kept: an inexact Newton step
@@ -119,25 +120,19 @@ class StepQPSolver(ABC):
 
 def make_step_qp(name: str) -> StepQPSolver:
     """The step-QP backend called `name` (the registry's ``step_qps``)."""
-    from ..registry import lookup
-
     entry = lookup("step_qps", str(name))
     return entry.obj.from_name(name)
 
 
 def step_qp_names() -> list[str]:
     """The registered step-QP backends' names (``qpsolvers:`` spelled with its solvers)."""
-    from ..registry import names
-
     return [item for name in names("step_qps")
             for item in ([f"{name}{solver}" for solver in SPARSE_QPSOLVERS] if name.endswith(":") else [name])]
 
 
-def step_qp_expected(name: str, error: Exception) -> str:
+def step_qp_expected(name: str) -> str:
     """The expected form of gauss-newton's `qp` option, with why `name` was refused: the
     reason a qpsolvers solver is not offered, or the close names."""
-    from ..errors import close_names
-
     solver = name.partition(":")[2] if name.startswith("qpsolvers:") else ""
     known = step_qp_names()
     close = close_names(name, known)
