@@ -82,7 +82,7 @@ NOT_RUN = {
     # every direction and step-QP backend to the certified answer on the quick suite's models: 190
     # runs, 614 s on the idle 2-core machine (2026-11-26); tests/bench/test_bench_run.py plans it
     # and runs a gauss-newton[qp=osqp] row, tests/directions/test_step_qp.py every backend
-    "qdframe bench run --suite quick --directions all --out docs/bench/directions": "a 10-minute measurement",
+    "qdframe bench run --suite quick --directions all --out docs/bench/directions-new": "a 10-minute measurement",
     # every model with an exact solution at two targets, uniform ladders to 81921 points: 3–5
     # minutes; tests/bench/test_bench_accuracy.py runs its code on one model, every step
     "qdframe bench accuracy": "a 4-minute measurement, its code run by test_bench_accuracy.py",
