@@ -29,6 +29,10 @@ import numpy as np
 
 from .functional import Functional
 
+# a descent with I ≤ tol but a pointwise check failing goes on while the worst check's ratio to
+# its tolerance shrinks by at least this factor in a window of iterations (qdframe.descent)
+CERTIFY_SHRINK = 4.0
+
 
 @dataclass(frozen=True)
 class Check:

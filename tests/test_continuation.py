@@ -6,7 +6,7 @@ import pytest
 
 import qdframe
 from qdframe import InclusionModel, SetBlock
-from qdframe.descent import _interpolate, _iterate
+from qdframe.continuation import interpolate, iterate_view
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 
@@ -95,17 +95,17 @@ def test_a_coarse_result_worse_on_the_fine_grid_keeps_the_models_start(direction
                            simulate_start=False)
     fine = Functional(model, Grid(model.T, 101, model.default_scheme))
     own = fine.objective(fine.initial_point())
-    assert fine.objective(_interpolate(fine, coarse)) > 100 * own
+    assert fine.objective(interpolate(fine, coarse)) > 100 * own
     start = next(r for r in result.history if r.nodes == 101)
     assert start.objective == own and result.objective <= own
 
 
 def test_an_iterate_round_trips_through_interpolation_on_its_own_grid():
-    """`_iterate` reads a stage's start as `_interpolate` reads a result (x, z, u, λ)."""
+    """`iterate_view` reads a stage's start as `interpolate` reads a result (x, z, u, λ)."""
     functional = Functional(qdframe.load_model("paper-7.3"), Grid(1.0, 11, "implicit-euler"))
     xi = functional.initial_point() + 0.01 * np.random.default_rng(0).standard_normal(functional.initial_point().shape)
     xi[0, : functional.n] = functional.model.x0
-    assert np.array_equal(_interpolate(functional, _iterate(functional, xi)), xi)
+    assert np.array_equal(interpolate(functional, iterate_view(functional, xi)), xi)
 
 
 @pytest.mark.parametrize("nodes, grids", [(101, [101]), (1001, [101, 301, 1001])])

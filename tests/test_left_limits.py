@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.descent import DescentOptions, _watchdog
+from qdframe.descent import DescentOptions
+from qdframe.steps import watchdog
 from qdframe.registry import make_direction
 from qdframe.directions.base import Direction, DirectionSolver
 from qdframe.directions.gauss_newton import _System
@@ -100,9 +101,9 @@ def test_the_watchdog_keeps_full_steps_only_for_a_real_gain():
     off = solved.copy()
     off[1:, 1] += 1e-3  # every velocity moved: its consistency defect is linear, one Newton step
     value = functional.objective(off)
-    path = _watchdog(functional, make_direction("gauss-newton"), off, value, options, 4)
+    path = watchdog(functional, make_direction("gauss-newton"), off, value, options, 4)
     assert len(path) == 1 and functional.objective(path[-1][0]) <= options.tol
-    assert _watchdog(functional, _Fixed(1e-2), off, value, options, 4) == []
+    assert watchdog(functional, _Fixed(1e-2), off, value, options, 4) == []
 
 
 @pytest.mark.parametrize("T, points", [(10.0, 3000), (14.0, 4000)])

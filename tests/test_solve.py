@@ -7,7 +7,7 @@ import pytest
 
 import qdframe
 import qdframe.directions.gauss_newton
-from qdframe.descent import grid_schedule
+from qdframe.continuation import grid_schedule
 from qdframe.registry import make_direction
 from qdframe.functional import Functional
 from qdframe.grid import Grid

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..descent import solve
+from ..solving import solve
 from ..registry import load_model
 from ..errors import InputError
 from ..progress import bar

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..descent import solve
+from ..solving import solve
 from ..registry import load_model
 from ..directions.minnorm import min_norm_point
 from ..directions.native import NativeDirection

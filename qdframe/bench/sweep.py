@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..descent import solve
+from ..solving import solve
 from ..registry import make_direction, make_line_search
 from ..directions.base import Direction, DirectionSolver
 from ..errors import InputError, QdframeError, UnknownNameError

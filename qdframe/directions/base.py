@@ -92,18 +92,18 @@ class DirectionSolver(ABC):
     name: ClassVar[str] = ""
     option_rules: ClassVar[dict[str, Rule]] = {}
     default_line_search: ClassVar[str] = "golden"  # used when the caller names none
-    default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (descent.grid_schedule)
+    default_continuation: ClassVar[str] = "none"  # grids before the requested one: "auto" or "none" (continuation.grid_schedule)
     coarsest_nodes: ClassVar[int] = 11  # the first grid of "auto"
     ladder_steps: ClassVar[tuple[int, ...]] = (1,)  # grids of "auto" per decade: (coarsest − 1)·step·10^k + 1
     # its step is a Newton step: where the descent stalls it may take a few whole (γ = 1) to
-    # leave a kink (descent._watchdog); the paper's min-norm directions are not
+    # leave a kink (steps.watchdog); the paper's min-norm directions are not
     full_steps: ClassVar[bool] = False
     # the iteration budget of a certified solve (solve's max_iter=None where the mesh is refined)
     certified_max_iter: ClassVar[int] = 500
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional` (and before a watchdog round of full steps:
-        descent._watchdog): reset any state kept between iterations."""
+        steps.watchdog): reset any state kept between iterations."""
 
     def check_options(self) -> None:
         """Raise :class:`OptionError` for the first option outside its range (`option_rules`;

@@ -1,0 +1,353 @@
+"""`qdframe.solve`, the call a user makes: the model and its unknowns, the arguments checked,
+the grids (a continuation ladder, or a mesh refined to an accuracy), the start of each grid,
+the descent on each (:mod:`qdframe.descent`) and the verdict on the last
+(:mod:`qdframe.verdict`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import unknowns
+from .continuation import BAND_START_ITERATIONS, COARSE_EPS_FACTOR, grid_schedule, interpolate, iterate_view
+from .descent import EPS_FLOOR, DescentOptions, ProgressCallback, descend
+from .directions.base import DirectionSolver
+from .errors import InputError
+from .estimates import CERTIFICATES
+from .functional import Functional
+from .grid import Grid
+from .line_searches.base import LineSearch
+from .model import InclusionModel
+from .registry import load_model, make_direction, make_line_search
+from .result import IterationRecord, SolveResult
+from .schemes import Scheme
+from .start import MODEL, Starts
+from .status import Status
+from .verdict import certify_result
+
+DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
+DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
+DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`nodes` is required for one)
+ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
+ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
+BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
+
+
+def solve(
+    model: str | InclusionModel,
+    nodes: int | None = None,
+    direction: str | DirectionSolver = "gauss-newton",
+    line_search: str | LineSearch | None = None,
+    *,
+    max_iter: int | None = None,
+    tol: float | None = None,
+    delta: float = 1e-3,
+    eps: float = 1e-2,
+    gamma_max: float = 1.0,
+    residual_tol: float = 1e-8,
+    eps_floor: float | None = None,
+    continuation: Sequence[int] | str | None = None,
+    progress: ProgressCallback | None = None,
+    scheme: str | Scheme | None = None,
+    signs: str = "exact",
+    selection_scale: float = 1.0,
+    mesh: Sequence[float] | np.ndarray | None = None,
+    estimate: bool = True,
+    accuracy: float | None = None,
+    max_nodes: int = 100_001,
+    certificate: str | None = None,
+    simulate_start: bool = True,
+    free_T: bool | None = None,
+    parameters: Mapping[str, float] | None = None,
+) -> SolveResult:
+    """Find a trajectory of `model` by quasidifferential descent.
+
+    `direction` "gauss-newton" (the default) or "native" (the paper's method), or any
+    registered name or DirectionSolver; `line_search` likewise, by default the
+    direction's own (`default_line_search`: armijo for gauss-newton, golden for native).
+
+    `continuation` lists coarser grids to solve on first (e.g. (11, 101) before
+    nodes=1001): each grid's result, interpolated, starts the next. "auto" is the ladder
+    11, 101, 1001, … below `nodes` (:func:`grid_schedule`), "none" (or ()) the one grid,
+    None the direction's own (`default_continuation`: "auto" for both, from the
+    direction's `coarsest_nodes` with its `ladder_steps`: 11, 101, 1001, … for the paper's
+    min-norm directions, 101, 301, 1001, 3001, … for gauss-newton). Each grid starts from
+    the lowest, on that grid, of the previous stage's iterate, the start that stage had (if
+    it came from a stage) and the model's own start. `max_iter` is the budget of all G
+    grids together: a coarser grid spends at most max(1, max_iter // (2G)) (its band start
+    included) and leaves one iteration to each later grid, so the requested grid gets the
+    rest: at least half when max_iter ≥ 2G and ≥ 1 when max_iter ≥ 1 (a coarse grid left
+    no iteration is skipped). A stage before the last only provides a start and stops on
+    10·ε. The history and `iterations` cover all grids, each record naming its grid
+    (`nodes`); each grid after the first adds a record of its start (same iteration
+    number); `options["iterations_per_grid"]` is aligned with `options["grids"]`, and a
+    status other than `solved` after several grids gives it in the message.
+
+    `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's;
+    "implicit-euler"; "radau-iia", where `nodes` counts mesh and stage points and is odd);
+    None is the model's `default_scheme` (implicit Euler unless the model says otherwise).
+    `signs` "exact" gives every sign term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied
+    to s by the natural map λ = clip(λ + c·s, −1, 1), c = `selection_scale`
+    (the result's `selections`); "band" uses each term's C¹ band instead.
+
+    Stops `solved` when the objective and I are ≤ tol (the model's default tol if
+    None), `stationary` when every node's deviation is ≤ ε or no step decreases the
+    objective (the paper's min-norm directions: where every node's deviation is ≤ ε but the
+    iterate is not solved, ε and δ shrink together by 10 and the descent goes on, down to
+    ε = `eps_floor`; None: 1e-12 for a certified solve, `nodes`/`mesh` without `accuracy`
+    keep the paper's fixed ε and δ; `options["eps"]` and `options["delta"]` are the smallest
+    its descents reached), `max_iter` when the budget is spent, `failed` when a backend reports an
+    error mid-run (the message says which).
+
+    A line-search trial point where the model returns NaN/inf is rejected (no decrease);
+    :class:`~qdframe.errors.ModelOutputError` is raised, naming the piece, node, t and the
+    state there, when the model is non-finite at an accepted iterate (its values or
+    gradients, at the start too) or on every step from it (the descent cannot continue).
+    The returned x(t_0) is the model's x0 exactly where x0 is given. `wall_time_s` is
+    the whole call: every grid, its start, its result's checks and the error estimate.
+
+    `nodes` is the number of points (default 101; under `accuracy`, 21: the first mesh).
+    `mesh` gives the mesh times 0 = τ_0 < … < τ_K = T of the requested grid (nonuniform
+    allowed; `nodes` is then stages·K + 1 and is ignored). A `solved` result carries
+    `error_estimate`, an estimate of max_t |x(t) − x*(t)| from a second solve on the
+    bisected mesh (:mod:`qdframe.adaptive`; `estimate=False` skips it: None), and
+    `switch_times`, where a Filippov selection changes regime (:mod:`qdframe.switches`).
+    `accuracy` asks for error_estimate ≤ accuracy: mesh points are moved onto the switch
+    times and the mesh is refined where the estimate is large, up to `max_nodes` points;
+    with `accuracy` and no `scheme` the scheme is radau-iia (order 3).
+    """
+    clock = time.perf_counter()
+    if isinstance(model, str):
+        model = load_model(model)
+    if free_T is not None or parameters:  # a copy with T free or fixed, or other guesses of p
+        model = unknowns.restated(model, free_T, parameters)
+    if model.has_unknowns:  # T or p found with x: the model on s = t/T with constant states
+        wrapper = unknowns.Unknowns(model)
+        given = dict(locals())
+        arguments = {name: given[name] for name in inspect.signature(solve).parameters
+                     if name not in ("model", "free_T", "parameters")}
+        if mesh is not None:
+            arguments["mesh"] = np.asarray(mesh, dtype=float) / (model.T if model.free_T else 1.0)
+        result = unknowns.unwrap(wrapper, solve(wrapper, **arguments))
+        result.wall_time_s = time.perf_counter() - clock
+        return result
+    plan = _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol, eps_floor,
+                 continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes, certificate,
+                 simulate_start)
+    run = _run_grids(plan, progress)
+    functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options, progress,
+                                        estimate, plan.target if plan.refining else None, plan.target, certificate,
+                                        max_nodes, plan.requested, plan.starts)
+    result.iterations = result.history[-1].iteration
+    result.wall_time_s = time.perf_counter() - clock
+    return _summarized(plan, run, functional, result)
+
+
+@dataclass
+class _Plan:
+    """What a solve runs: its descent options, direction and line search, the grids in
+    turn (each a functional; the first one also with the band where signs are exact), the
+    starts on offer, and the target of its verdict."""
+
+    options: DescentOptions
+    solver: DirectionSolver
+    search: LineSearch
+    grids: list[int]
+    stages: list[Functional]
+    starts: Starts
+    refining: bool  # the mesh is refined to the target (else a fixed grid)
+    target: float
+    requested: str | Scheme  # the scheme of the result (the first grids may bootstrap with implicit Euler)
+    signs: str
+    selection_scale: float
+
+
+def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
+          eps_floor, continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes, certificate,
+          simulate_start) -> _Plan:
+    """The arguments of :func:`solve` checked and turned into the grids it runs."""
+    if accuracy is not None and not (isinstance(accuracy, (int, float)) and np.isfinite(accuracy) and accuracy > 0):
+        raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
+    if isinstance(max_nodes, bool) or not isinstance(max_nodes, (int, np.integer)) or max_nodes < 3:
+        raise InputError("max_nodes", "an integer ≥ 3", max_nodes)
+    if certificate not in (None, *CERTIFICATES):
+        raise InputError("certificate", " or ".join(f'"{name}"' for name in CERTIFICATES) + " (None: by the problem)",
+                         certificate)
+    refining = accuracy is not None or (nodes is None and mesh is None)  # else a fixed grid
+    if refining and not estimate:
+        raise InputError("estimate", "True when the mesh is refined to an accuracy (estimate=False needs nodes= or "
+                         "mesh= without accuracy=)", estimate)
+    given_nodes = nodes
+    if nodes is None:
+        nodes = ACCURACY_START_NODES if refining else DEFAULT_NODES
+    scheme = (ACCURACY_SCHEME if refining else model.default_scheme) if scheme is None else scheme
+    requested, scheme = scheme, (BOOTSTRAP_SCHEME if refining else scheme)
+    starts = Starts(model, simulate=simulate_start)
+    if refining and mesh is None and given_nodes is None:  # the first mesh: from the model's motion where it has one
+        mesh = starts.mesh(ACCURACY_START_NODES - 1)
+        if mesh is not None:  # the motion has the switches: no implicit-Euler bootstrap nor coarser grids to find them
+            scheme = requested
+            continuation = "none" if continuation is None else continuation
+    final = Grid(model.T, nodes, scheme) if mesh is None else Grid.from_mesh(_mesh_times(mesh, model.T), scheme)
+    solver = make_direction(direction)
+    if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
+        max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
+    if eps_floor is None:  # a fixed grid keeps the paper's ε and δ
+        eps_floor = EPS_FLOOR if refining else eps
+    options = DescentOptions(
+        max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
+        residual_tol=residual_tol, eps_floor=eps_floor,
+    )
+    search = make_line_search(solver.default_line_search if line_search is None else line_search)
+    if continuation is None and starts.motion() is not None:
+        continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
+    grids = grid_schedule(final.nodes, solver.default_continuation if continuation is None else continuation,
+                          solver.coarsest_nodes, solver.ladder_steps)
+    stages = []  # the functionals solved in turn: each grid, the first one also with the band if exact
+    for count in grids:
+        grid = final if count == final.nodes else Grid(model.T, count, scheme)
+        functional = Functional(model, grid, signs=signs, selection_scale=selection_scale)
+        if not stages and functional.p:
+            stages.append(Functional(model, functional.grid, signs="band"))
+        stages.append(functional)
+    return _Plan(options, solver, search, grids, stages, starts, refining,
+                 DEFAULT_ACCURACY if accuracy is None else float(accuracy), requested, signs, selection_scale)
+
+
+@dataclass
+class _Run:
+    """The descents on a plan's grids: the last functional and result, the history over all
+    grids, the iterations per grid, the (ε, δ) each descent ended with, the first start."""
+
+    functional: Functional
+    result: SolveResult
+    per_grid: list[int]
+    shrunk_to: list[tuple[float, float]]
+    first_start: str
+
+
+def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
+    """One descent per grid, coarsest first, each from the lowest start on offer there.
+
+    A coarser grid spends at most max(1, max_iter // (2G)) (its band start included) and
+    leaves one iteration to each later grid; a stage before the last stops on 10·ε. The
+    returned iterate is never worse than the model's start."""
+    options, grids = plan.options, plan.grids
+    history, result = [], None
+    shrunk_to = []  # (ε, δ) each descent of the user's direction ended with (the paper's: shrunk, perhaps)
+    first_start = MODEL
+    earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
+    per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
+    share = max(1, options.max_iter // (2 * len(grids)))  # a coarse grid's cap: the requested grid keeps ≥ half
+    for functional in plan.stages:
+        count = functional.grid.nodes
+        index = grids.index(count)
+        last = functional is plan.stages[-1]
+        later = len(grids) - 1 - index
+        budget = options.max_iter - sum(per_grid) - later  # one iteration kept for each later grid
+        if later:
+            budget = min(budget, share - per_grid[index])
+        if functional.signs != plan.signs:  # the band only starts the exact solve: a short run, one iteration left
+            budget = min(budget - 1, BAND_START_ITERATIONS)
+        if budget <= 0 and not last:  # no iteration here: no result from this grid
+            continue
+        label, start, from_stage = _lowest_start(plan.starts, functional, earlier)
+        if not history:
+            first_start = label
+        used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
+
+        def shift(record: IterationRecord, used: int = used, elapsed: float = elapsed) -> IterationRecord:
+            """A record counted over all grids so far."""
+            return dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
+
+        # a stage before the last only provides a start: it stops on the looser ε, which stays fixed
+        stage = options if last else dataclasses.replace(options, eps=options.eps * COARSE_EPS_FACTOR,
+                                                         eps_floor=options.eps * COARSE_EPS_FACTOR)
+        stage = dataclasses.replace(stage, max_iter=budget)
+        shown = None if progress is None else (lambda record: progress(shift(record)))
+        result = descend(functional, plan.solver, plan.search, stage, shown, start)
+        shrunk_to.append((result.options["eps"], result.options["delta"]))
+        history += [shift(record) for record in result.history]
+        per_grid[index] += result.iterations
+        earlier = [result] + ([iterate_view(functional, start)] if from_stage and result.iterations else [])
+        if result.status == Status.FAILED:
+            if not last:
+                band = " (band start)" if functional.signs != plan.signs else ""
+                result.message = f"on the grid of {count} nodes{band}: {result.message}"
+            break
+    result = _not_worse_than_start(functional, plan, result)
+    result.history = history
+    return _Run(functional, result, per_grid, shrunk_to, first_start)
+
+
+def _lowest_start(starts: Starts, functional: Functional, earlier: list) -> tuple[str, np.ndarray, bool]:
+    """The start of a grid: the lowest there of the earlier stages' iterates (the last one
+    first on a tie) and the model's own start (or its simulated motion); its label, and
+    whether it came from a stage."""
+    label, start = starts.best(functional)
+    from_stage, lowest = False, np.inf
+    if earlier:
+        candidates = [interpolate(functional, source) for source in earlier] + [start]
+        for number, candidate in enumerate(candidates):
+            value = functional.objective(candidate)
+            if number == 0 or value < lowest:
+                start, lowest, from_stage = candidate, value, number < len(earlier)
+    return label, start, from_stage
+
+
+def _not_worse_than_start(functional: Functional, plan: _Plan, result: SolveResult) -> SolveResult:
+    """The result, or the model's start returned unchanged where it is lower than the
+    iterate reached (status `stationary`, the message saying both)."""
+    first = functional.initial_point()
+    if result.status == Status.FAILED or not functional.objective(first) < result.objective:
+        return result
+    reached = result.message.partition("; ")[0]  # how the descent ended, not its diagnosis of that iterate
+    result = descend(functional, plan.solver, plan.search, dataclasses.replace(plan.options, max_iter=0), None, first)
+    unmet = result.message.partition("; ")[2]  # the diagnosis of the start, which is returned
+    result.status = Status.STATIONARY
+    result.message = (f"{reached}; the model's start is better than the iterate reached: returned unchanged"
+                      + (f"; {unmet}" if unmet else ""))
+    return result
+
+
+def _summarized(plan: _Plan, run: _Run, functional: Functional, result: SolveResult) -> SolveResult:
+    """The result's options over the whole solve (grids, iterations per grid, the smallest
+    ε and δ reached, the start) and its message where it did not end `solved`."""
+    options = plan.options
+    refined = result.options.pop("meshes", [])  # (nodes, iterations) of each mesh an accuracy request solved on
+    shrunk_to = run.shrunk_to + result.options.pop("shrunk_to", [])
+    grids = plan.grids + [count for count, _ in refined]
+    per_grid = run.per_grid + [used for _, used in refined]
+    # the smallest ε (and its δ) of the solve's descents: where the paper's method got to
+    eps_reached, delta_reached = min(shrunk_to) if shrunk_to else (options.eps, options.delta)
+    result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,
+                      "start": run.first_start, "grids": grids, "iterations_per_grid": per_grid,
+                      "scheme": functional.grid.scheme.name, "signs": plan.signs,
+                      "selection_scale": plan.selection_scale, "uniform": functional.grid.uniform}
+    spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
+    if result.status == Status.MAX_ITER:  # the whole budget, and any remark of the last descent after "; "
+        remark = result.message.partition("; ")[2]
+        result.message = (f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
+                          + (f"; {remark}" if remark else ""))
+    elif result.status != Status.SOLVED and len(grids) > 1:
+        result.message += f"; {result.iterations} iterations: {spent}"
+    return result
+
+
+def _mesh_times(mesh: Sequence[float] | np.ndarray, T: float) -> np.ndarray:
+    """The user's mesh as an array checked against the model's horizon."""
+    try:
+        tau = np.asarray(mesh, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("mesh", "increasing mesh times from 0 to T", mesh) from None
+    if tau.ndim != 1 or tau.size < 2 or tau[0] != 0.0 or not np.isclose(tau[-1], T, rtol=1e-14, atol=0.0):
+        raise InputError("mesh", f"increasing mesh times from 0 to T = {T:g}", f"shape {tau.shape}" if tau.ndim != 1
+                         else f"[{tau[0]:g}, …, {tau[-1]:g}]")
+    tau = tau.copy()
+    tau[-1] = T
+    return tau

@@ -1,0 +1,106 @@
+"""The verdict on a solve: its switch times, its error estimate and its status against the
+accuracy target. Under `accuracy` the mesh is refined until the estimate meets it
+(:func:`qdframe.adaptive.to_accuracy`); on a fixed grid the estimate is made once
+(:func:`qdframe.adaptive.on_fixed_grid`). `solved` stays only where the estimate is within
+the target; a solved discrete problem without that is `uncertified` (:mod:`qdframe.status`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import adaptive, switches
+from .continuation import interpolate
+from .descent import DescentOptions, ProgressCallback, descend
+from .directions.base import DirectionSolver
+from .functional import Functional
+from .line_searches.base import LineSearch
+from .registry import make_direction, make_line_search
+from .result import SolveResult
+from .schemes import Scheme
+from .start import MODEL, Starts
+from .status import Status
+
+COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected grid
+
+
+def certify_result(functional: Functional, result: SolveResult, solver: DirectionSolver, search: LineSearch,
+                   options: DescentOptions, progress: ProgressCallback | None, wanted: bool,
+                   accuracy: float | None, target: float, certificate: str | None, max_nodes: int,
+                   scheme: str | Scheme, starts: Starts | None = None) -> tuple[Functional, SolveResult]:
+    """The result with its switch times, its error estimate and its status against the
+    target: under `accuracy`, refined until the estimate meets it (:func:`adaptive.to_accuracy`),
+    else on its fixed grid (:func:`adaptive.on_fixed_grid`). `solved` stays only where the
+    estimate is ≤ target·max(1, max|x|); a discrete solve whose estimate is larger, or that
+    has none, is `uncertified`. Every descent appends to the history."""
+    history, meshes, shrunk_to = result.history, [], []
+    companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
+
+    def run(target_functional: Functional, previous: SolveResult, own: bool) -> SolveResult:
+        """A descent on `target_functional` from `previous` interpolated: the user's solver
+        (`own`, counted in the history) or gauss-newton for the estimate's bisected grid."""
+        used = history[-1].iteration
+        budget = max(options.max_iter - used, 0) if own else COMPANION_ITERATIONS
+        stage = dataclasses.replace(options, max_iter=budget)
+        shown = None if progress is None or not own else (
+            lambda record: progress(dataclasses.replace(record, iteration=record.iteration + used)))
+        start = interpolate(target_functional, previous)
+        label, motion = starts.best(target_functional) if starts is not None else (MODEL, None)
+        if label != MODEL and target_functional.objective(motion) < target_functional.objective(start):
+            start = motion  # the model's motion sampled here is nearer than the last mesh's solution
+        out = descend(target_functional, solver if own else companion_solver, search if own else companion_search,
+                      stage, shown, start)
+        if own:
+            meshes.append((target_functional.grid.nodes, out.iterations))
+            shrunk_to.append((out.options["eps"], out.options["delta"]))
+            elapsed = history[-1].time_s
+            history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
+                           for r in out.history)
+        return out
+
+    own, companion = (lambda f, r: run(f, r, True)), (lambda f, r: run(f, r, False))
+    if accuracy is not None:
+        outcome = adaptive.to_accuracy(functional, result, own, companion, accuracy, scheme, certificate, max_nodes)
+    else:
+        outcome = adaptive.on_fixed_grid(functional, result, companion, certificate, wanted, target)
+    functional, result, found = outcome.functional, outcome.result, outcome.estimate
+    result.history = history
+    result.error_estimate = found.value
+    result.certificate = found.certificate if found.value is not None else None
+    result.accuracy = target
+    solved = result.status == Status.SOLVED  # the discrete problem: every pointwise check passes
+    result.switch_times = switches.switch_times(functional, adaptive.iterate(functional, result)) if solved \
+        else np.zeros(0)
+    note = outcome.note
+    if solved:
+        bound = adaptive.tolerance(target, result, functional)
+        if found.value is None:
+            result.status = Status.UNCERTIFIED
+            reason = found.detail or "no error estimate"
+            note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error is not "
+                               f"certified: {reason}" + ("" if accuracy is not None else
+                                                         f"; more nodes, or accuracy={target:g}"))
+        elif found.value > bound:
+            result.status = Status.UNCERTIFIED
+            note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error estimate "
+                               f"{found.value:.1e} ({found.certificate}) exceeds the target {bound:.1e}"
+                         + ("" if accuracy is not None else f": more nodes, or accuracy={target:g}"))
+        else:
+            note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
+            if found.detail:
+                note = _join(note, found.detail)
+            if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
+                result.switch_times = switches.polish(result.switch_times, found.switch_times,
+                                                      functional.grid.mesh_times)
+    result.options = {**result.options, "estimate_time_s": outcome.seconds, "shrunk_to": shrunk_to}
+    if accuracy is not None:
+        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
+    if note:
+        result.message = _join(result.message, note)
+    return functional, result
+
+
+def _join(*parts: str) -> str:
+    """The non-empty parts of a message, joined by "; "."""
+    return "; ".join(part for part in parts if part)
