@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 import qdframe
-from qdframe.authoring.pieces import affine, ball_switch, coordinate
+from qdframe.ready_pieces import affine, ball_switch, coordinate
 from qdframe.model import InclusionModel, SetBlock, SignTerm
 from qdframe.models.planar_friction import IsotropicPuck, sled_phase
 from qdframe.sets import SetModel, Sgn

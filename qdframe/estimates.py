@@ -25,7 +25,7 @@ moves x by up to δ times the velocity's jump.
 **replay** — where the solutions form a set (a free input, a set-valued right-hand side)
 or the problem is an initial-value problem. The trajectory's own choices are replayed
 through the true dynamics: from its x(0), the Filippov motion x_ref of
-x' ∈ g + B·Sgn(s) (:func:`qdframe.filippov.model_system`), each set's velocity the point
+x' ∈ g + B·Sgn(s) (:func:`qdframe.model_system.model_system`), each set's velocity the point
 nearest to the trajectory's own choice, the controls the trajectory's u, all continued
 between the points by the scheme's own rule for x' (:meth:`~qdframe.schemes.Scheme.velocity`),
 integrated by DOP853 with event location (rtol = atol = 1e-11). x_ref is a true motion of
@@ -187,7 +187,8 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     """The estimate from the true motion driven by the trajectory's own choices (module
     docstring); its integration error is measured (a second integration, 10× looser) unless
     the rest of the estimate is above `target` already."""
-    from .filippov import FilippovError, integrate, model_system
+    from .filippov import FilippovError, integrate
+    from .model_system import model_system
 
     exact = functional if functional.signs == "exact" else like(functional, functional.grid, "exact")
     grid = exact.grid

@@ -115,7 +115,7 @@ class SignTerm:
 
     `amplitude` is a constant a ≥ 0 or a tuple of groups, each `pieces(y)` returning
     values (N, m) and gradients (N, m, n + m) (|y_i| is the group {y_i, −y_i}: see
-    :func:`qdframe.authoring.pieces.abs_sum`). `switch(y)` returns s (N,) and ∇s (N, n + m).
+    :func:`qdframe.ready_pieces.abs_sum`). `switch(y)` returns s (N,) and ∇s (N, n + m).
 
     The solver uses the support function a(y)·κ_ψ(s) with κ_ψ(s) = 1 − 2·S(u),
     u = clip(−ψs/β, 0, 1), S(u) = 3u² − 2u³: the whole interval a·[−1, 1] at s = 0,

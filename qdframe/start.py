@@ -22,7 +22,8 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from .filippov import MOVING, FilippovError, FilippovTrajectory, integrate, model_system
+from .filippov import MOVING, FilippovError, FilippovTrajectory, integrate
+from .model_system import model_system
 from .errors import ModelOutputError, QdframeError
 from .functional import Functional
 from .grid import Grid
@@ -161,7 +162,7 @@ class _OutOfTime(Exception):
 def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
     """ξ on `functional`'s grid from a motion: x(t_k), z_k = its velocity g + B·λ in the mode
     of t_k, λ_k that mode's selections (the equivalent control while sliding). The model is
-    evaluated at all nodes at once (:func:`qdframe.filippov.model_system` one point at a
+    evaluated at all nodes at once (:func:`qdframe.model_system.model_system` one point at a
     time is only for the integrator); nodes are grouped by mode for the small solves."""
     from .functional.nearest import nearest
 

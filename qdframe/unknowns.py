@@ -170,7 +170,8 @@ class Unknowns(InclusionModel):
     def _swept(self, lo: float, hi: float) -> tuple[float, bool] | None:
         """(the best T in [lo, hi], whether it nearly meets the conditions), or None."""
         from .errors import QdframeError
-        from .filippov import FilippovError, integrate, model_system
+        from .filippov import FilippovError, integrate
+        from .model_system import model_system
         from .functional import Functional
         from .grid import Grid
 

@@ -9,7 +9,8 @@ import pytest
 import qdframe
 from qdframe import estimates
 from qdframe.errors import InputError
-from qdframe.filippov import FilippovError, integrate, model_system
+from qdframe.filippov import FilippovError, integrate
+from qdframe.model_system import model_system
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.models.friction import BlockStopStick, block_stop_stick_motion

@@ -8,7 +8,7 @@ from qdframe import simulate as simulate_module
 from qdframe.cli import main
 from qdframe.functional import Functional
 from qdframe.grid import Grid
-from qdframe.authoring.pieces import abs_sum
+from qdframe.ready_pieces import abs_sum
 from qdframe.model import InclusionModel, SetBlock, SignTerm, Surface
 from qdframe.simulate import simulate
 
@@ -172,8 +172,16 @@ def test_set_bounds_of_a_sign_term_contain_filippovs_set():
 
 
 def test_paper_73_starts_where_the_reaching_phase_ends():
+    """x(0) is the model's data REACHING_END: the reaching phase simulated again ends there."""
+    from qdframe.models import paper_73 as masses
+    from qdframe.simulate import simulate
+
+    model = qdframe.load_model("paper-7.3", x0=masses.REACHING_START)
+    run = simulate(model, -masses.REACHING_TIME, 0.0, masses.REACHING_START, dt=2e-4)
+    assert np.allclose(run.x[-1], masses.REACHING_END, rtol=0.0, atol=1e-12)
     x0 = qdframe.load_model("paper-7.3").x0
-    assert np.allclose(x0, [-1.0525, 1.0995, -0.7873, 0.0, 0.0264, 1.1196], atol=1e-3)
+    assert np.array_equal(x0, masses.REACHING_END) and np.array_equal(qdframe.load_model("paper-7.3-reduced").x0, x0)
+    assert np.allclose(x0, [-1.0525, 1.0995, -0.7873, 0.0, 0.0264, 1.1196], atol=1e-3)  # the paper's digits
 
 
 @pytest.mark.parametrize("nodes, scheme, signs", [(101, None, "exact"), (11, "trapezoid", "band"), (101, "trapezoid", "band")])

@@ -1,7 +1,7 @@
 """Every built-in model, registered under the `qdframe.models` entry points (pyproject.toml).
 
 - ``paper.py``: the paper's Examples 7.1, 7.2 (``paper-7.1``, ``paper-7.2``), hand-written;
-- ``masses.py``: Example 7.3 (``paper-7.3``, ``paper-7.3-reduced``), hand-written;
+- ``paper_73.py``: Example 7.3 (``paper-7.3``, ``paper-7.3-reduced``), hand-written;
 - ``paper_sets.py``: Examples 7.1–7.3 in the set language, not registered (the form to
   read; tests check it against the hand-written ones, which the registry serves);
 - ``friction.py``: Filippov problems with exact solutions (``block-stop-stick``, …);

@@ -30,7 +30,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..authoring.pieces import affine, constant, coordinate
+from ..ready_pieces import affine, constant, coordinate
 from ..model import InclusionModel, SetBlock, SignTerm
 
 

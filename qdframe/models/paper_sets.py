@@ -1,11 +1,11 @@
 """The paper's Examples 7.1–7.3 in the set language (:mod:`qdframe.sets`): the form to read.
 
 They compile to the same pieces as the hand-written models in ``paper.py`` and
-``masses.py`` (tests/sets/test_paper_examples.py compares functional values,
+``paper_73.py`` (tests/sets/test_paper_examples.py compares functional values,
 quasidifferentials and solves). The registry serves the hand-written ones as
 ``paper-7.1``, ``paper-7.2`` and ``paper-7.3``: the published results were computed with
 them, and on ``paper-7.3``, whose solution is not unique, this form's default solve takes
-another path (``masses.py`` says more). These are not registered: import them, or see
+another path (``paper_73.py`` says more). These are not registered: import them, or see
 docs/authoring.md.
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..sets import Abs, Ball, Ellipse, Interval, SetModel, Sgn, intersection, norm1, sqrt
-from .masses import FRICTION, GAIN, reaching_phase_end
+from .paper_73 import FRICTION, GAIN, REACHING_END
 
 
 class Paper71Sets(SetModel):
@@ -66,7 +66,7 @@ class Paper73Sets(SetModel):
     band = 1e-3  # of the friction terms Sgn(x5), Sgn(x6)
 
     def __init__(self, T=None, x0=None, end_values=None):
-        super().__init__(T, reaching_phase_end() if x0 is None else x0, end_values)
+        super().__init__(T, REACHING_END if x0 is None else x0, end_values)
 
     def sets(self, x1, x2, x3, x4, x5, x6, u):
         # Filippov's set on the surface x4 = 0: the whole 1.05|x|·[−1, 1] (band inf)

@@ -35,9 +35,9 @@ and what is allowed where it stands. Pieces must be continuously differentiable 
 of {e, −e}) and in costs and sign amplitudes, where it is the group max{e, −e}.
 
 Modules: :mod:`~qdframe.sets.expressions` (formulas: checks, ψ, support formulas),
-:mod:`~qdframe.sets.base` (:class:`Set`, its algebra and normal form, :class:`Point`),
+:mod:`~qdframe.sets.algebra` (:class:`Set`, its normal form, :class:`Point`, and the
+combinators its operators build: sum, hull, intersection, scaling),
 :mod:`~qdframe.sets.primitives` (Interval, Box, Ball, Ellipse, Sgn and its vector form),
-:mod:`~qdframe.sets.combinators` (sum, hull, intersection, scaling),
 :mod:`~qdframe.sets.compiler` (sets to :class:`~qdframe.model.SetBlock` pieces) and
 :mod:`~qdframe.sets.set_model` (:class:`SetModel`, :func:`define_model`).
 """
@@ -45,8 +45,7 @@ Modules: :mod:`~qdframe.sets.expressions` (formulas: checks, ψ, support formula
 from sympy import Abs, Max, Min, sqrt  # re-exported for model authors
 
 # the classes behind the operators, as_set and Compiled are importable too (not in __all__, as before)
-from .base import Point, Set, as_set
-from .combinators import Hull, Intersection, Scaled, Sum, hull, intersection, minkowski_sum, union
+from .algebra import Hull, Intersection, Point, Scaled, Set, Sum, as_set, hull, intersection, minkowski_sum, union
 from .compiler import Compiled, compile_sets
 from .expressions import SetStructureError, norm1
 from .primitives import Ball, Box, Ellipse, Interval, Sgn, VectorSgn

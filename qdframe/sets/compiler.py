@@ -1,6 +1,6 @@
 """The compiler: a model's sets, surface and cost to qdframe's low-level pieces.
 
-Each set's normal form (:class:`~qdframe.sets.base._Support`) becomes a
+Each set's normal form (:class:`~qdframe.sets.algebra._Support`) becomes a
 :class:`~qdframe.model.SetBlock`: polytopes are max-groups, ψ-formulas min-groups, sign
 terms :class:`~qdframe.model.SignTerm`. Gradients are derived by SymPy and lambdified to
 NumPy once, so every piece is evaluated for all nodes at once.
@@ -18,7 +18,7 @@ import sympy as sp
 
 from ..errors import InputError
 from ..model import BallSwitch, Cost, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
-from .base import _NotHere, _Support, as_set
+from .algebra import _NotHere, _Support, as_set
 from .primitives import BallArgument, WholeVectorSign
 from .expressions import _NONSMOOTH, SetStructureError, _expr, _psi, _refuse_singular, _s, _smooth, _vector
 

@@ -31,9 +31,7 @@ def norm1(*terms: Any) -> sp.Expr:
 
 
 def _expr(value: Any, where: str) -> sp.Expr:
-    from .base import Set  # (base builds on this module)
-
-    if isinstance(value, Set):
+    if getattr(value, "is_set", False):  # a Set (qdframe.sets.algebra, which builds on this module)
         raise SetStructureError(where, "a formula (a number or a SymPy expression), not a set", value.label)
     try:
         out = sp.sympify(value, strict=True)

@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .base import Set, _cartesian_sum, _NotHere, _Support
-from .combinators import Hull
+from .algebra import Hull, Set, _cartesian_sum, _NotHere, _Support
 from .expressions import SetStructureError, _dot, _expr, _norm, _psi, _s, _segment_formula, _smooth, _text, _vector
 
 

@@ -1,4 +1,4 @@
-"""Ready-made pieces for hand-written models (qdframe/authoring/pieces.py): values and
+"""Ready-made pieces for hand-written models (qdframe/ready_pieces.py): values and
 gradients, and a model built from them passes check-model."""
 
 import numpy as np

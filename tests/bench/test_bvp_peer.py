@@ -31,7 +31,7 @@ from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.model import InclusionModel, SetBlock, SignTerm
-from qdframe.authoring.pieces import affine, coordinate
+from qdframe.ready_pieces import affine, coordinate
 
 
 # ------------------------------------------------- a stand-in for stick-slip-oscillator

@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 import qdframe
 from qdframe.bench.filippov import FilippovError, FilippovSystem, integrate, reference, statement
 from qdframe.models.friction import FRICTION_MODELS
-from qdframe.models.masses import Paper73
+from qdframe.models.paper_73 import Paper73
 
 EXACT = sorted(FRICTION_MODELS) + ["coulomb-block", "sliding-mode"]
 TOL = 1e-9

@@ -10,8 +10,8 @@ import pytest
 from sympy import cos, sin
 
 import qdframe
-from qdframe import filippov
-from qdframe.authoring.pieces import affine, ball_switch, coordinate
+from qdframe import filippov, model_system
+from qdframe.ready_pieces import affine, ball_switch, coordinate
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.model import InclusionModel, SetBlock, SignTerm
@@ -24,7 +24,7 @@ from qdframe.switches import _ball_regimes, _locate, polish
 
 
 def _system(model):
-    return filippov.model_system(Functional(model, Grid(model.T, 2, "implicit-euler")))
+    return model_system.model_system(Functional(model, Grid(model.T, 2, "implicit-euler")))
 
 
 # ------------------------------------------------------------------ the references

@@ -1,5 +1,5 @@
 """The paper's Examples 7.1–7.3 in the set language (qdframe/models/paper_sets.py) give the
-hand-written models' (qdframe/models/paper.py, masses.py) functional, quasidifferential and solves."""
+hand-written models' (qdframe/models/paper.py, paper_73.py) functional, quasidifferential and solves."""
 
 import numpy as np
 import pytest

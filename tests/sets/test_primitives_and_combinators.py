@@ -1,4 +1,4 @@
-"""The primitive sets (qdframe/sets/primitives.py) and the combinators (combinators.py):
+"""The primitive sets (qdframe/sets/primitives.py) and the combinators (algebra.py):
 each compiles to the support function of its definition."""
 
 import numpy as np

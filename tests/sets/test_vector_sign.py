@@ -9,7 +9,7 @@ import pytest
 import sympy as sp
 
 import qdframe
-from qdframe.authoring.pieces import affine, ball_switch, coordinate
+from qdframe.ready_pieces import affine, ball_switch, coordinate
 from qdframe.functional import Functional
 from qdframe.functional.pieces import _ball_band_kappa
 from qdframe.grid import Grid

@@ -9,7 +9,8 @@
 terms are Filippov's set-valued Sgn. The trajectory must stay on the surface x4 = 0
 and bring the third mass to x3(1) = 0; u(t) is an unknown control. x(0) is the end
 of the reaching phase on [−0.2, 0] with u = 0 from x(−0.2) = (−1, 1, −1, −1, 1, 1),
-computed by the Filippov simulator (not the paper's rounded numbers).
+computed by the Filippov simulator once and kept as data (:data:`REACHING_END`; not the
+paper's rounded numbers).
 
 :class:`Paper73` is the registered ``paper-7.3``, and :class:`Paper73Reduced` (the
 paper's reduction) derives from it. The set-language form ``paper_sets.Paper73Sets`` has
@@ -22,15 +23,19 @@ Filippov system from this module.
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
-from ..authoring.pieces import abs_sum
+from ..ready_pieces import abs_sum
 from ..model import InclusionModel, SetBlock, SignTerm, Surface
 
 REACHING_START = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
 REACHING_TIME = 0.2
+# x(0): the state where the reaching phase [−REACHING_TIME, 0] from REACHING_START with u = 0
+# ends, by the event-driven Filippov simulation (qdframe.simulate, on this model); the model
+# takes it as data, and tests/test_masses_and_signs.py simulates it again and holds these
+# digits to it
+REACHING_END = (-1.052416998365643, 1.099387196129389, -0.787251438817487, 6.637353512715934e-21,
+                0.026497008046283743, 1.119553755053641)
 FRICTION = 0.3
 GAIN = 1.05
 WIDTH = 7  # y = (x1, …, x6, u)
@@ -80,25 +85,9 @@ class Paper73(InclusionModel):
     # band inf; the surface term ω enforces x4 = 0, where this is exact.
     surface_band = float("inf")
 
-    _x0: np.ndarray | None = None  # None: the reaching phase's end, simulated at first use
-
     def __init__(self, T=None, x0=None, end_values=None) -> None:
-        """Without `x0`, x(0) is the end of the reaching phase, simulated (once per process)
-        when x0 is first read, by a solve or a check, not here: loading stays fast."""
-        super().__init__(T, (float("nan"),) * len(self.state_names) if x0 is None else x0, end_values)
-        if x0 is None:
-            self._x0 = None
-
-    @property
-    def x0(self) -> np.ndarray:
-        """x(0), (6,): the given one, or the end of the reaching phase (:func:`reaching_phase_end`)."""
-        if self._x0 is None:
-            self._x0 = np.array(reaching_phase_end())
-        return self._x0
-
-    @x0.setter
-    def x0(self, value: np.ndarray) -> None:
-        self._x0 = value
+        """Without `x0`, x(0) is the end of the reaching phase (:data:`REACHING_END`)."""
+        super().__init__(T, REACHING_END if x0 is None else x0, end_values)
 
     def blocks(self) -> tuple[SetBlock, ...]:
         beta = self.band
@@ -133,14 +122,3 @@ class Paper73Reduced(Paper73):
 
     def blocks(self) -> tuple[SetBlock, ...]:
         return super().blocks()[3:]
-
-
-@lru_cache(maxsize=1)
-def reaching_phase_end() -> tuple[float, ...]:
-    """x(0) after the reaching phase [−0.2, 0] with u = 0 (Filippov simulation), computed
-    at its first call and cached: :class:`Paper73` asks for it when its x0 is first read."""
-    from ..simulate import simulate
-
-    model = Paper73(x0=REACHING_START)
-    run = simulate(model, -REACHING_TIME, 0.0, REACHING_START, dt=2e-4)
-    return tuple(float(v) for v in run.x[-1])

@@ -20,7 +20,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..model import BallSwitch
+from .model import BallSwitch
 
 Affine = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
