@@ -25,7 +25,7 @@ from .argtypes import (
     vector, writable,
 )
 from .authoring.check import add_check_parser, main_check
-from .bench.cli import add_bench_parser, main_bench
+from .bench.commands import add_bench_parser, main_bench
 from .errors import InputError, QdframeError
 from .registry import GROUPS, KIND_LABEL, PluginWarning, available, lookup
 from .status import EXIT_CODES, EXIT_ERROR, EXIT_USAGE, Status

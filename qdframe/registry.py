@@ -1,10 +1,11 @@
-"""Registries of models, direction solvers, line searches, schemes and step QPs, fed by
-entry points, and the factories that build one by name (`load_model`, `make_direction`,
-`make_line_search`).
+"""Registries of models, direction solvers, line searches, schemes, step QPs and benchmark
+peers, fed by entry points, and the factories that build one by name (`load_model`,
+`make_direction`, `make_line_search`, `make_peer`).
 
 qdframe's own built-ins are declared in its pyproject under the same groups as any
 plugin's (`qdframe.models`, `qdframe.directions`, `qdframe.line_searches`,
-`qdframe.schemes`, `qdframe.step_qps`: gauss-newton's step-QP backends). A plugin
+`qdframe.schemes`, `qdframe.step_qps`: gauss-newton's step-QP backends,
+`qdframe.peers`: the tools `qdframe bench run --peers` compares with). A plugin
 that fails to load is a warning naming its distribution; two distributions claiming
 one name give a warning and a deterministic winner (qdframe itself first, then by
 distribution name); an unknown name is an error suggesting the close ones ("did you
@@ -29,9 +30,10 @@ GROUPS = {
     "line_searches": "qdframe.line_searches",
     "schemes": "qdframe.schemes",
     "step_qps": "qdframe.step_qps",
+    "peers": "qdframe.peers",
 }
 KIND_LABEL = {"models": "model", "directions": "direction", "line_searches": "line search", "schemes": "scheme",
-              "step_qps": "step QP"}
+              "step_qps": "step QP", "peers": "peer"}
 
 
 class PluginWarning(UserWarning):
@@ -191,3 +193,10 @@ def make_line_search(line_search: Any) -> Any:
     if not isinstance(line_search, str):
         return line_search
     return lookup("line_searches", str(line_search)).obj()
+
+
+def make_peer(peer: Any) -> Any:
+    """A benchmark peer (a :class:`qdframe.bench.peer.Peer`) by registered name, or the instance given."""
+    if not isinstance(peer, str):
+        return peer
+    return lookup("peers", str(peer)).obj()

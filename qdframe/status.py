@@ -54,5 +54,8 @@ EXIT_CODES: dict[Status, int] = {
     Status.MAX_ITER: 5,
     Status.FAILED: 6,
 }
+# a benchmark row's status beside these (`qdframe bench run`): its run passed the time limit
+TIME_LIMIT = "time_limit"
+
 EXIT_ERROR = 1  # an error stopped the run before it had a result
 EXIT_USAGE = 2  # bad input: one line names the field and the expected form

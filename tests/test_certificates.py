@@ -13,7 +13,7 @@ from qdframe.filippov import FilippovError, integrate
 from qdframe.model_system import model_system
 from qdframe.functional import Functional
 from qdframe.grid import Grid
-from qdframe.models.friction import BlockStopStick, block_stop_stick_motion
+from qdframe.models.exact_friction import BlockStopStick, block_stop_stick_motion
 from qdframe.start import Starts
 
 SIMULATED = ("block-stop-stick", "block-breakaway", "slide-on-line", "slide-after-reaching", "two-surface-sliding",

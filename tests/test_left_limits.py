@@ -20,7 +20,7 @@ from qdframe.directions.gauss_newton import _System
 from qdframe.functional import Functional
 from qdframe.errors import InputError
 from qdframe.grid import Grid
-from qdframe.models.friction import stick_slip_oscillator_motion
+from qdframe.models.exact_friction import stick_slip_oscillator_motion
 
 
 @pytest.mark.parametrize("scheme, left", [("radau-iia", [4]), ("implicit-euler", [2]), ("trapezoid", [])])

@@ -1,25 +1,30 @@
-"""Benchmarks: every `qdframe bench` subcommand, and the reference solutions they judge by.
+"""Benchmarks: every `qdframe bench` subcommand, the problems they run and the references they
+judge by.
 
-* :mod:`.cli` — the `qdframe bench` subcommands' arguments (``add_bench_parser``, ``main_bench``);
-* :mod:`.directions` — `bench directions`: speed and accuracy of the min-norm QP backends;
+* :mod:`.problems` — the problem catalogue: every benchmark problem, its suites and tags, its
+  statements for the peers and the reference (adding a problem is one entry there);
+* :mod:`.commands` — the `qdframe bench` subcommands' arguments (``add_bench_parser``, ``main_bench``);
+* :mod:`.compare_directions` — `bench directions`: speed and accuracy of the min-norm QP backends;
 * :mod:`.hard` — `bench hard`: the hard-case suite;
 * :mod:`.friction` — `bench friction`: the stick/slide/switch suite per N;
 * :mod:`.accuracy` — `bench accuracy`: nodes and time to a true error, uniform against `accuracy=`;
 * :mod:`.scale` — `bench scale`: seconds per iteration against N, the floor and memory;
+* :mod:`.unknown_cost` — `bench unknowns`: the cost per iteration of a free T or parameter;
 * `bench run`, work-precision against references:
-  :mod:`.sweep` (the cases, one run → one row, executors), :mod:`.references` (a row's
-  error against the model's reference), :mod:`.filippov` (an independent event-driven
-  Filippov integrator), :mod:`.report` (diagrams, times to an error, report.md),
-  :mod:`.statements` (each friction and sliding model written once for the peers),
-  :mod:`.peers` (nosnoc) and :mod:`.bvp_peer` (scipy's solve_bvp);
+  :mod:`.run` (the cases, one run → one row, executors), :mod:`.references` (a row's
+  error against the model's reference), :mod:`.replay_statements` (each model stated
+  independently for the event-driven Filippov integrator), :mod:`.report` (diagrams,
+  times to an error, report.md), :mod:`.sign_forms` (each friction and sliding model
+  written once for the peers), the peer interface :mod:`.peer` and its registered peers
+  :mod:`.nosnoc_peer` and :mod:`.solve_bvp_peer` (scipy's solve_bvp);
 * :mod:`.pages` — `bench pages`: README's and docs/benchmark-results.md's tables from the reports.
 
 The models the benchmarks pose live with every other built-in model, in :mod:`qdframe.models`.
 """
 
-from .directions import bench_directions, format_table, write_json
+from .compare_directions import bench_directions, format_table, write_json
 from .report import shifted_geometric_mean, summarize, write_report
-from .sweep import SUITES, Case, Plan, ResultStore, execute, plan, run_case, run_sweep
+from .run import SUITES, Case, Plan, ResultStore, execute, plan, run_case, run_sweep
 
 __all__ = [
     "Case",

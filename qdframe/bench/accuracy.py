@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..status import Status
 from ..solving import solve
 from ..registry import load_model
 from ..errors import InputError
@@ -206,12 +207,12 @@ def table(rows: Sequence[AccuracyRow]) -> str:
     head += [f"N ratio ({schemes[0]})", f"time ratio ({schemes[0]})"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        cells = [r.model, f"{r.target:.0e}", str(r.nodes) + ("" if r.status == "solved" else f" ({r.status})"),
+        cells = [r.model, f"{r.target:.0e}", str(r.nodes) + ("" if r.status == Status.SOLVED else f" ({r.status})"),
                  f"{r.seconds:.2f}", f"{r.error:.1e}", "—" if r.estimate is None else f"{r.estimate:.1e}",
                  "yes" if r.met else "**no**", _offset(r)]
         for u in r.uniform:
             if u.reached:
-                cells += [str(u.nodes) + ("" if u.status in ("solved", "uncertified") else f" ({u.status})"),
+                cells += [str(u.nodes) + ("" if u.status in (Status.SOLVED, Status.UNCERTIFIED) else f" ({u.status})"),
                           f"{u.seconds:.2f}"]
             else:
                 cells += [f"not reached ({u.tried}, {_error(u.error)})", "—"]

@@ -17,12 +17,9 @@ from dataclasses import dataclass
 from ..solving import solve
 from ..registry import load_model
 from ..progress import bar
+from . import problems
 
-SUITE = (
-    "block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line", "slide-after-reaching",
-    "two-surface-sliding", "coulomb-block", "sliding-mode-terminal",
-    "block-stopping-time", "block-friction-coefficient",  # T or a coefficient found with x
-)
+SUITE = problems.tagged("friction-suite")  # the catalogue's stick/slide/switch problems (T or a coefficient found too)
 
 
 @dataclass(frozen=True)

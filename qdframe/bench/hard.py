@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..status import Status
 from ..solving import solve
 from ..registry import load_model
 from ..directions.minnorm import min_norm_point
@@ -234,7 +235,7 @@ def friction_suite() -> HardCase:
     from .friction import SUITE, run_suite
 
     rows = run_suite(SUITE, (101,))
-    failed = [r.model for r in rows if r.status not in ("solved", "uncertified")]
+    failed = [r.model for r in rows if r.status not in (Status.SOLVED, Status.UNCERTIFIED)]
     worst = max(r.residual for r in rows)
     return HardCase("stick/slide/switch suite (N = 101)",
                     f"{len(rows) - len(failed)}/{len(rows)} solved, strict residual ≤ {worst:.1e}"

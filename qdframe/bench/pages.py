@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .report import ranking, ratio_table, solver_times
-from .sweep import read_csv
+from .run import read_csv
 
 PAGES = ("README.md", "docs/benchmark-results.md")
 SUITES = ("quick", "standard", "directions")  # the folders of docs/bench; directions: --suite quick --directions all

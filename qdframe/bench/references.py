@@ -6,11 +6,11 @@ of three kinds:
 
 * ``exact`` — the model's closed-form solution (``model.exact_solution``; its
   ``switch_times``), where the problem has exactly one solution. Once per sweep it is
-  cross-checked against an independent integrator (:func:`~.filippov.reference`: DOP853,
+  cross-checked against an independent integrator (:func:`~.problems.reference`: DOP853,
   rtol = atol = 1e-12, one event per switching function, sliding by its equivalent control)
   where that integrator can state the model; report.md gives the discrepancy.
 * ``events replay`` — a problem whose solutions form a set (a bounded input to choose)
-  and that :mod:`.filippov` can state with an input: the true Filippov motion from the
+  and that :mod:`.replay_statements` can state with an input: the true Filippov motion from the
   trajectory's x(0) driven by the input recovered from the trajectory itself (the peer's
   own input where it has one), integrated with event location.
 * ``projection replay`` — any other problem without a unique solution: the true motion
@@ -37,11 +37,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..filippov import FilippovError
+from ..filippov import FilippovError, integrate
 from ..model import InclusionModel
+from . import problems
 
 EXACT, EVENTS, PROJECTION = "exact", "events replay", "projection replay"
-RESTING = 1e-7  # |v| below this counts as v = 0 when an input is recovered from a trajectory (10× the residual tolerance: a solved block at rest has |v| up to ~1e-8)
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ def kind(model: InclusionModel) -> str:
     """Which reference judges `model`'s rows."""
     if model.exact_solution(np.array([0.0, model.T])) is not None:
         return EXACT
-    if model.name in INPUTS:
+    if problems.recovers_inputs(model):
         return EVENTS
     return PROJECTION
 
@@ -80,7 +80,7 @@ def judge(
 ) -> Judgement:
     """Judge the trajectory (t, x, z, u) of `model`. For an events replay, `inputs` is the
     peer's own input u(t); else the input is recovered at the points t from the trajectory
-    (:data:`INPUTS`, from the trajectory's own `selections` λ (N, p) where it has them) and
+    (the catalogue's input recovery, :mod:`.problems`, from the trajectory's own `selections` λ (N, p) where it has them) and
     continued between them by `velocity` (a :data:`Continuation`: the scheme's own rule for
     x', :class:`SchemeRule`; default piecewise linear).
     Where the trajectory leaves its input undetermined at some points (a recoverer returns
@@ -96,17 +96,15 @@ def judge(
         return Judgement(error, error, end, _switch_error(model, switch_times), EXACT, None,
                          time.perf_counter() - start, "the model's closed-form solution at the trajectory's own times")
     if which == EVENTS:
-        from .filippov import integrate, statement
-
         best = None
-        recovered = [] if inputs is not None else INPUTS[model.name](x, z, u, model, selections)
+        recovered = [] if inputs is not None else problems.recovered_inputs(model, x, z, u, selections)
         recovered = [recovered] if isinstance(recovered, np.ndarray) else list(recovered)
         drives = ([("the peer's own input", inputs)] if inputs is not None else
                   [(label, _Drive(rule, values, breaks)) for label, rule, breaks in continuations(t, velocity)
                    for values in recovered])
         for label, drive in drives:
             try:
-                reference = integrate(statement(model, drive), x[0], float(t[-1]))(t)
+                reference = integrate(problems.statement(model, drive), x[0], float(t[-1]))(t)
             except FilippovError as exc:
                 if best is None and label == "linear":
                     raise
@@ -263,44 +261,6 @@ def _interpolated(t: np.ndarray, values: np.ndarray) -> Callable[[float], np.nda
     return drive
 
 
-def _coulomb_force(x, z, u, model, selections=None) -> np.ndarray | list[np.ndarray]:
-    """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·σ, ±U), σ the trajectory's own
-    selection where it gives one (the model's term is F·λ with λ ∈ Sgn(−v): σ = −λ), else
-    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so).
-    Without selections the point where the block comes to rest is undetermined: its z_v may
-    be the deceleration of the interval that ends there (σ the sign before it) or already
-    the rest's (σ = 0, where the block stops between two points): both candidates."""
-    def force(sign: np.ndarray) -> np.ndarray:
-        return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
-
-    if selections is not None:
-        return force(-np.asarray(selections, float)[:, 0])
-    velocity = x[:, 1]
-    rest = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
-    stops = np.flatnonzero((rest[1:] == 0.0) & (rest[:-1] != 0.0)) + 1
-    keep = rest.copy()
-    keep[stops] = rest[stops - 1]
-    return [force(keep), force(rest)] if stops.size else force(rest)
-
-
-def _sliding_inputs(x, z, u, model, selections=None) -> np.ndarray:
-    """v' = w with |w_i| ≤ 10: w = clip(z_v, ±10)."""
-    return np.clip(z[:, 2:4], -model.input_bound, model.input_bound)
-
-
-def _paper_control(x, z, u, model, selections=None) -> np.ndarray:
-    """Example 7.3's control u, a column of the trajectory itself."""
-    if u is None or np.size(u) == 0:
-        raise ValueError("paper-7.3: a trajectory without its control u cannot be replayed")
-    return np.asarray(u, float)
-
-
-INPUTS: dict[str, Callable] = {
-    "coulomb-rest-to-rest": _coulomb_force,
-    "sliding-mode-terminal": _sliding_inputs,
-    "paper-7.3": _paper_control,
-}
-"""Models judged by an events replay, and how each recovers its input at a trajectory's points."""
 
 
 # ------------------------------------------------------------------ recipes for the report
@@ -320,11 +280,9 @@ def cross_check(name: str) -> str:
     if which == PROJECTION:
         return (f"{PROJECTION}: per row, the true motion x' = P_F(x)(z(t)) from the row's x(0) (Filippov's "
                 f"theorem), see the row's reference uncertainty; error includes how far it misses the end conditions")
-    from .filippov import reference
-
     start = time.perf_counter()
     try:
-        motion = reference(model)
+        motion = problems.reference(model)
     except Exception as exc:  # an integrator failure is reported, not fatal
         return f"{EXACT}: closed form (cross-check failed: {type(exc).__name__}: {exc})"
     if motion is None and callable(getattr(model, "equations", None)):  # models.user_friction's

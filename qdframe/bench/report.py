@@ -31,8 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..status import TIME_LIMIT, Status
 from ..errors import InputError
-from .peers import PEERS
+from ..registry import available
 
 SHIFT = 10.0
 TARGETS = (1e-3, 1e-6)  # the errors whose time to reach report.md gives
@@ -40,7 +41,7 @@ FIGURES = {
     "work_precision": "work_precision.png",
     "history": "objective_history.png",
 }
-FAILED = {"failed", "time_limit"}  # drawn with a cross: the run did not end normally
+FAILED = {Status.FAILED, TIME_LIMIT}  # drawn with a cross: the run did not end normally
 
 
 def shifted_geometric_mean(values: Sequence[float], shift: float = SHIFT) -> float:
@@ -61,7 +62,7 @@ def solver_label(row: dict) -> str:
 
 def tool(row: dict) -> str:
     """qdframe, or the peer's name: times to an error are compared between tools."""
-    return row["direction"] if row["direction"] in PEERS else "qdframe"
+    return row["direction"] if row["direction"] in available("peers") else "qdframe"
 
 
 def summarize(rows: Sequence[dict], time_limit: float | None = None) -> list[dict]:
@@ -200,7 +201,7 @@ def plot_work_precision(rows: Sequence[dict], path: str | Path, models: Sequence
             ax.plot(errors, times, color=style["color"], ls=style["ls"], lw=1.2)
             for r, e, t in zip(line, errors, times):
                 marker = "x" if r["status"] in FAILED else style["marker"]
-                solved = r["status"] == "solved"
+                solved = r["status"] == Status.SOLVED
                 ax.plot([e], [t], marker=marker, color=style["color"], ms=style["ms"] + 1,
                         mfc=style["color"] if solved and marker != "x" else "none", ls="")
         for target in targets:
@@ -409,7 +410,7 @@ def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: flo
             paths[f"work_precision:{model}"] = out / "work_precision" / f"{model}.png"
             plot_work_precision(rows, paths[f"work_precision:{model}"], models=[model])
         plot_histories(rows, paths["history"])
-    peers = sorted({r["direction"] for r in rows if r["direction"] in PEERS})
+    peers = sorted({r["direction"] for r in rows if r["direction"] in available("peers")})
     machines = sorted({r["machine"] for r in rows if r.get("machine")})
     loads = [r["load_average"] for r in rows if r.get("load_average") is not None]
     total = sum(r["wall_time_s"] for r in rows if r.get("wall_time_s"))
@@ -502,8 +503,8 @@ def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: flo
                 text.append(f"- {r['model']}, {r['direction']} {r['knob']}: {r['status']} — {r.get('message') or ''}")
         text.append("")
     skipped = meta.get("skipped_directions") or {}
-    failed = [r for r in rows if r["status"] == "failed" and r["direction"] not in peers]
-    unjudged = [r for r in rows if r.get("error") is None and r["status"] != "failed"]
+    failed = [r for r in rows if r["status"] == Status.FAILED and r["direction"] not in peers]
+    unjudged = [r for r in rows if r.get("error") is None and r["status"] != Status.FAILED]
     if skipped or failed or unjudged:
         text += ["## Not run, failed or not judged", ""]
         text += [f"- direction `{name}` skipped: {why}" for name, why in sorted(skipped.items())]

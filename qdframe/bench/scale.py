@@ -39,8 +39,11 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from ..status import Status
+from . import problems
+
 PATHS = ("gauss-newton", "native")
-MODELS = ("paper-7.1", "paper-7.2", "paper-7.3")
+MODELS = problems.tagged("scale")  # the paper's examples
 NODES = (1001, 10001, 100001)
 ITERATIONS = 3
 FLOOR_REPEAT = 3
@@ -87,7 +90,7 @@ def run(paths: Sequence[str] = PATHS, models: Sequence[str] = MODELS, nodes: Seq
                         try:
                             measured.append(pool.submit(measure, path, model, count, iterations).result())
                         except Exception as exc:  # a crashed child (e.g. out of memory): a row that says so
-                            measured.append(Cell(path, model, count, 0, "failed", *([float("nan")] * 6),
+                            measured.append(Cell(path, model, count, 0, Status.FAILED, *([float("nan")] * 6),
                                                  error=f"{type(exc).__name__}: {exc}"))
                 cell = best(measured)
                 cells.append(cell)

@@ -21,8 +21,9 @@ from ..registry import load_model, make_direction
 from ..functional import Functional
 from ..grid import Grid
 from ..unknowns import Unknowns, restated
+from . import problems
 
-MODELS = ("block-friction-coefficient", "block-stopping-time")
+MODELS = problems.tagged("unknowns")  # T or a coefficient found with x
 NODES = (10001, 100001)
 ITERATIONS = 6
 

@@ -4,7 +4,7 @@
 - ``paper_73.py``: Example 7.3 (``paper-7.3``, ``paper-7.3-reduced``), hand-written;
 - ``paper_sets.py``: Examples 7.1–7.3 in the set language, not registered (the form to
   read; tests check it against the hand-written ones, which the registry serves);
-- ``friction.py``: Filippov problems with exact solutions (``block-stop-stick``, …);
+- ``exact_friction.py``: Filippov problems with exact solutions (``block-stop-stick``, …);
 - ``planar_friction.py``: friction in the plane and in space, in the set language
   (``orthotropic-puck``; isotropic friction by the vector sign Sgn(v1, v2): ``isotropic-puck``,
   ``isotropic-slide-3d``);

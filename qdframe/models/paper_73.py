@@ -17,7 +17,7 @@ paper's reduction) derives from it. The set-language form ``paper_sets.Paper73Se
 the same functional and quasidifferential to rounding but, the solution not being unique,
 the default solve takes another path to another solution: registering it would change
 published results.
-tests/bench/test_filippov_reference.py and qdframe/bench/filippov.py state the reference
+tests/bench/test_filippov_reference.py and qdframe/bench/replay_statements.py state the reference
 Filippov system from this module.
 """
 

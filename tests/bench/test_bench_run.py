@@ -16,11 +16,11 @@ import pytest
 
 from qdframe.cli import main as qdframe_main
 from qdframe.registry import make_direction
-from qdframe.bench import peers as bench_peers
-from qdframe.bench import sweep as bench_sweep
+from qdframe.bench import nosnoc_peer as bench_peers
+from qdframe.bench import run as bench_sweep
 from qdframe.bench.report import (common_models, ranking, ratios, shifted_geometric_mean, solver_times, summarize,
                                   time_to)
-from qdframe.bench.sweep import Case, claim, read_csv, run_case
+from qdframe.bench.run import Case, claim, read_csv, run_case
 
 TINY = ["run", "--models", "paper-7.1,coulomb-rest-to-rest", "--directions", "gauss-newton,native",
         "--nodes", "11", "--accuracy", "none", "--max-iter", "15", "--quiet"]
@@ -277,7 +277,7 @@ def test_nosnoc_own_points_are_judged_with_the_uniform_times():
 
 def test_a_peer_past_the_time_limit_is_marked(monkeypatch):
     slow = bench_peers.PeerRun("solved", "done", 3, 100.0, 1.0)
-    monkeypatch.setattr(bench_sweep, "run_nosnoc", lambda model, nodes: slow)
+    monkeypatch.setattr(bench_peers.Nosnoc, "run", lambda self, model, nodes: slow)
     row = run_case(Case("block-stop-stick", "nosnoc", "ipopt", 11, 100, 30.0, peer="nosnoc"))
     assert row["status"] == "time_limit" and "time limit 30 s" in row["message"] and "done" in row["message"]
 
@@ -350,7 +350,8 @@ def test_standard_suite_covers_the_issue_list():
             "block-stop-stick", "slide-after-reaching", "two-surface-sliding", "stick-slip-oscillator",
             "pivot-friction-pendulum", "two-block-chain", "relay-oscillator"} <= models
     nosnoc = {c.model for c in sweep.cases if c.peer == "nosnoc"}
-    assert nosnoc == set(models) & set(bench_peers.PEER_MODELS["nosnoc"])  # every model it can state
+    stated = {name for name in models if bench_peers.Nosnoc().states(bench_sweep.resolve_model(name))}
+    assert nosnoc == stated  # every model it can state
     assert {"block-stop-stick", "stick-slip-oscillator", "two-block-chain", "coulomb-rest-to-rest"} <= nosnoc
     assert max(c.nodes or 0 for c in sweep.cases) == 100001
 

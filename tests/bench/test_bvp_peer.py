@@ -1,4 +1,4 @@
-"""The solve_bvp peer (qdframe.bench.bvp_peer): its statements and what they cost.
+"""The solve_bvp peer (qdframe.bench.solve_bvp_peer): its statements and what they cost.
 
 Measured (scipy 1.17.1, ε = tol, 11-node uniform start, x0 held constant, max_nodes 1e5):
 
@@ -24,8 +24,9 @@ import warnings
 import numpy as np
 import pytest
 
-from qdframe.bench.bvp_peer import BVP_MODELS, STICK_SLIP_FRICTION, STICK_SLIP_NAME, boundary_conditions, \
-    run_solve_bvp, statement
+from qdframe.bench import problems
+from qdframe.bench.solve_bvp_peer import boundary_conditions, run_solve_bvp, statement
+from qdframe.models.exact_friction import OSC_FRICTION as STICK_SLIP_FRICTION  # p' = v, v' ∈ −p − 0.1·Sgn(v)
 from qdframe.registry import load_model
 from qdframe.errors import InputError
 from qdframe.functional import Functional
@@ -35,6 +36,9 @@ from qdframe.ready_pieces import affine, coordinate
 
 
 # ------------------------------------------------- a stand-in for stick-slip-oscillator
+STICK_SLIP_NAME = "stick-slip-oscillator"
+
+
 def stick_slip_motion(t: np.ndarray, p0: float = 5.0, mu: float = STICK_SLIP_FRICTION) -> np.ndarray:
     """Exact Filippov solution of p' = v, v' ∈ −p − μ·Sgn(v), v(0) = 0: half cycles of length π
     about the centre c = μ·sign(p_k) (the friction opposes the motion towards −sign(p_k)),
@@ -108,7 +112,7 @@ def test_stand_in_exact_solution_is_a_filippov_solution():
 
 
 # ------------------------------------------------------ the statement lies in F(y)
-@pytest.mark.parametrize("name", BVP_MODELS)
+@pytest.mark.parametrize("name", problems.with_sign_form())
 def test_statement_lies_in_the_models_set_off_the_surfaces(name):
     """At random states with every coded switch |s| ≥ 0.05 (≫ ε, so sat = sign), fun(t, y) is
     the point of F(y) with λ = sign(s) (signs="exact": an equality check, which catches a

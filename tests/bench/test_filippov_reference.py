@@ -1,4 +1,5 @@
-"""The independent Filippov integrator (qdframe.bench.filippov) against closed forms.
+"""The independent Filippov statements (qdframe.bench.replay_statements, through the catalogue
+qdframe.bench.problems) integrated by the event-driven integrator, against closed forms.
 
 Every model with an exact solution that `statement` covers: the reference motion agrees
 with it to 1e-9 at 2001 times and its mode changes happen at the model's switch times.
@@ -13,8 +14,9 @@ import pytest
 from scipy.optimize import brentq
 
 import qdframe
-from qdframe.bench.filippov import FilippovError, FilippovSystem, integrate, reference, statement
-from qdframe.models.friction import FRICTION_MODELS
+from qdframe.bench.problems import reference, statement
+from qdframe.filippov import FilippovError, FilippovSystem, integrate
+from qdframe.models.exact_friction import FRICTION_MODELS
 from qdframe.models.paper_73 import Paper73
 
 EXACT = sorted(FRICTION_MODELS) + ["coulomb-block", "sliding-mode"]

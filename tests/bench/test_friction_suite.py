@@ -10,7 +10,7 @@ import pytest
 
 import qdframe
 from qdframe.bench.friction import SUITE, run_suite
-from qdframe.models.friction import FRICTION_MODELS
+from qdframe.models.exact_friction import FRICTION_MODELS
 
 NODES = (101, 1001, 10001)
 SOLVED = SUITE  # (relay-period, whose fixed implicit-Euler grids fail, is not in it: README, "Known failures")

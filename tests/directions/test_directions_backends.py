@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.bench.directions import degenerate_instances
-from qdframe.bench.sweep import installed_directions
+from qdframe.bench.compare_directions import degenerate_instances
+from qdframe.bench.run import installed_directions
 from qdframe.cli import main
 from qdframe.directions import qp as qp_module
 from qdframe.directions.native import NativeDirection

@@ -1,4 +1,4 @@
-"""The exact solutions of qdframe.models.friction: are they Filippov solutions?
+"""The exact solutions of qdframe.models.exact_friction: are they Filippov solutions?
 
 These tests check the closed forms themselves (not the solver): the exact motion meets
 the boundary data, its derivative lies in F(x(t)) with Sgn(0) = [−1, 1] through the
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from qdframe.authoring import check_model
-from qdframe.models.friction import FRICTION_MODELS
+from qdframe.models.exact_friction import FRICTION_MODELS
 from qdframe.simulate import simulate
 
 MODELS = sorted(FRICTION_MODELS)

@@ -1,13 +1,14 @@
-"""Peers: nosnoc, run on every problem it can state (solve_bvp: :mod:`.bvp_peer`).
+"""The nosnoc peer (:class:`Nosnoc`, registered as ``nosnoc``), run on every catalogue problem it
+can state.
 
 nosnoc (PyPI ``nosnoc``, FESD + homotopy + IPOPT through CasADi) states a Filippov system
 in Stewart's form: subsystems i with modes F_i = [f_i1, f_i2], x' = Σ_i F_i θ_i, each θ_i in
 the simplex, the mode chosen by the sign of a switching function c_i (S_i = [[1], [−1]]).
 
-- **The friction and sliding models** (:data:`.statements.SIGN_MODELS`): x' ∈ f(x) +
+- **The friction and sliding models** (a sign form in :mod:`.problems`): x' ∈ f(x) +
   Σ_j a_j(x)·Sgn(c_j(x)) is one subsystem per sign term with modes f + a_j and f − a_j for
   the first and ±a_j for the others (the subsystems' fields add, so f enters once), the
-  statement of :mod:`.statements`. There is no control and no cost: nosnoc's OCP with the
+  statement of :mod:`.sign_forms`. There is no control and no cost: nosnoc's OCP with the
   model's end conditions as terminal equality constraints. A free start value x_i(0) is a
   global variable p_i of the OCP (nosnoc fixes x(0)): the state is x − p_i·e_i from 0.
   One control stage, N − 1 finite elements: FESD may move every element boundary.
@@ -40,7 +41,6 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from importlib import metadata
 
 import numpy as np
 
@@ -48,29 +48,34 @@ from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
 from ..models.bounded_input import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
-from .statements import SIGN_MODELS, SignForm, sign_form
+from ..status import Status
+from . import problems
+from .peer import Peer, PeerRun, package_version
+from .sign_forms import SignForm
 
 NOSNOC_STAGES = 10
-PEER_MODELS = {"nosnoc": (CoulombRestToRest.name, SlidingModeTerminal.name, *SIGN_MODELS)}
+CONTROL_PROBLEMS = (CoulombRestToRest, SlidingModeTerminal)  # stated here, not from a sign form
 TWO_MODES = np.array([[1], [-1]])  # Stewart's S of one switching function: mode 1 where c > 0, mode 2 where c < 0
-PEERS = ("nosnoc", "solve_bvp")  # the peers' names, as the `direction` of their rows
 INSTALL_HINT = "pip install 'qdframe[peers]' (or pip install nosnoc)"
 
 
-@dataclass
-class PeerRun:
-    """What a peer produced, already judged on qdframe's grid."""
+class Nosnoc(Peer):
+    """nosnoc (FESD + homotopy + IPOPT through CasADi): N − 1 finite elements per run."""
 
-    status: str  # "solved" when the peer reports success, "failed" otherwise
-    message: str
-    iterations: int
-    wall_time_s: float
-    setup_time_s: float
-    x: np.ndarray | None = None
-    z: np.ndarray | None = None
-    history: list[dict] = field(default_factory=list)  # per homotopy step: iteration, I, objective, time_s
-    t: np.ndarray | None = None  # the peer's own time grid (None: N uniform nodes)
-    inputs: Callable[[float], np.ndarray] | None = None  # the peer's own input u(t), where it has one
+    name = "nosnoc"
+    inner = "ipopt"
+    line = "nosnoc / ipopt"
+    knob = "nodes"
+    description = "nosnoc: FESD, Stewart's form, IPOPT (pip install 'qdframe[peers]')"
+
+    def unavailable(self) -> str | None:
+        return nosnoc_available()
+
+    def states(self, model: InclusionModel) -> bool:
+        return isinstance(model, CONTROL_PROBLEMS) or problems.sign_form(model) is not None
+
+    def run(self, model: InclusionModel, setting: float) -> PeerRun:
+        return run_nosnoc(model, int(setting))
 
 
 def nosnoc_available() -> str | None:
@@ -85,11 +90,11 @@ def nosnoc_available() -> str | None:
 
 
 def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
-    """Solve `model` (one of PEER_MODELS["nosnoc"]) with nosnoc and judge it at N = `nodes`
+    """Solve `model` (one :meth:`Nosnoc.states`) with nosnoc and judge it at N = `nodes`
     uniform times and at its own points."""
     reason = nosnoc_available()
     if reason is not None:
-        return PeerRun("failed", reason, 0, float("nan"), float("nan"))
+        return PeerRun(Status.FAILED, reason, 0, float("nan"), float("nan"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         import casadi as ca
@@ -139,7 +144,7 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
     if statement.controls:
         controls = np.asarray(results["u_list"], dtype=float).reshape(opts.N_stages, -1)
         inputs = _stagewise(controls, model.T)
-    return PeerRun("solved" if success else "failed", message, ipopt_iterations, wall, setup, x, z, history,
+    return PeerRun(Status.SOLVED if success else Status.FAILED, message, ipopt_iterations, wall, setup, x, z, history,
                    t=t, inputs=inputs)
 
 
@@ -168,14 +173,6 @@ def _stagewise(controls: np.ndarray, T: float) -> Callable[[float], np.ndarray]:
 
     drive.breaks = tuple(T * np.arange(1, controls.shape[0]) / controls.shape[0])
     return drive
-
-
-def package_version(distribution: str) -> str:
-    """The installed version of `distribution`, or "?"."""
-    try:
-        return metadata.version(distribution)
-    except metadata.PackageNotFoundError:
-        return "?"
 
 
 def _collocation_nodes(opts) -> np.ndarray:
@@ -252,12 +249,13 @@ def own_times(results: dict, tau: np.ndarray, uniform: np.ndarray) -> np.ndarray
 
 
 def _problem(model: InclusionModel, ca, nosnoc) -> _Statement:
-    """nosnoc's statement of `model`: a friction or sliding model of :mod:`.statements`, or one
-    of the two bounded-input problems."""
+    """nosnoc's statement of `model`: a friction or sliding model with a sign form
+    (:mod:`.problems`), or one of the two bounded-input problems."""
     S = [TWO_MODES]
-    if model.name in SIGN_MODELS:
-        return _sign_problem(model, sign_form(model.name, model), ca, nosnoc)
-    if model.name == CoulombRestToRest.name:
+    form = problems.sign_form(model)
+    if form is not None:
+        return _sign_problem(model, form, ca, nosnoc)
+    if isinstance(model, CoulombRestToRest):
         position, velocity, force = ca.SX.sym("p"), ca.SX.sym("v"), ca.SX.sym("u")
         x = ca.vertcat(position, velocity)
         friction = model.friction
@@ -268,7 +266,7 @@ def _problem(model: InclusionModel, ca, nosnoc) -> _Statement:
         end[list(model.end_indices)] = model.end_values
         ocp = nosnoc.NosnocOcp(lbu=-bound, ubu=bound, f_q=force**2, g_terminal=x - end)
         return _Statement(nos_model, ocp, NOSNOC_STAGES, controls=True)
-    if model.name == SlidingModeTerminal.name:
+    if isinstance(model, SlidingModeTerminal):
         x1, x2, v1, v2 = (ca.SX.sym(name) for name in ("x1", "x2", "v1", "v2"))
         u1, u2 = ca.SX.sym("u1"), ca.SX.sym("u2")
         x, u = ca.vertcat(x1, x2, v1, v2), ca.vertcat(u1, u2)
@@ -282,7 +280,8 @@ def _problem(model: InclusionModel, ca, nosnoc) -> _Statement:
         target = np.asarray(model.end_values)
         ocp = nosnoc.NosnocOcp(lbu=-bound, ubu=bound, f_q=v1**2 + v2**2, g_terminal=x[:2] - target)
         return _Statement(nos_model, ocp, NOSNOC_STAGES, controls=True)
-    raise ValueError(f"nosnoc has no statement of model {model.name!r}; it runs {', '.join(PEER_MODELS['nosnoc'])}")
+    raise ValueError(f"nosnoc has no statement of model {model.name!r}; it runs the catalogue's problems with a "
+                     "sign form and the bounded-input control problems")
 
 
 def _sign_problem(model: InclusionModel, form: SignForm, ca, nosnoc) -> _Statement:

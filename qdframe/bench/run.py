@@ -42,11 +42,10 @@ from ..errors import InputError, QdframeError, UnknownNameError
 from ..functional import Functional
 from ..grid import Grid
 from ..model import InclusionModel
-from ..models.bounded_input import BENCH_MODELS
 from ..progress import bar
-from ..registry import available, lookup
-from .bvp_peer import BVP_MODELS, run_solve_bvp
-from .peers import PEER_MODELS, run_nosnoc
+from ..registry import available, lookup, make_peer
+from ..status import TIME_LIMIT, Status
+from . import problems
 from .references import SchemeRule, judge
 
 FORMAT = "qdframe-bench-run/3"
@@ -59,14 +58,6 @@ FIELDS = (
     "max_iter", "time_limit_s",
     "machine", "load_average", "started_at", "message",
 )
-PAPER_MODELS = ("paper-7.1", "paper-7.2", "paper-7.3")
-FRICTION_MODELS = ("block-stop-stick", "block-stop-stick-bvp", "block-breakaway", "slide-on-line",
-                   "slide-after-reaching", "two-surface-sliding")
-PLUGIN_MODELS = ("coulomb-block", "sliding-mode", "double-pendulum", "velocity-range", "disturbed-control",
-                 "intersecting-balls")
-LONG_HORIZON = ("stick-slip-oscillator",)
-USER_FRICTION = ("pivot-friction-pendulum", "two-block-chain", "relay-oscillator")  # the hard cases users brought
-PEER_PROBLEMS = tuple(BENCH_MODELS)
 # direction preference of the suites: the default, the paper's, then the QP backends
 DIRECTION_PREFERENCE = ("gauss-newton", "native", "qpsolvers:daqp", "clarabel", "osqp", "cvxpy")
 COMPARED_TARGETS = (1e-3, 1e-6)  # --directions all: accuracy= runs at these (report.TARGETS' errors)
@@ -91,7 +82,7 @@ class Suite:
     elements), solve_bvp the `bvp_tols`."""
 
     name: str
-    models: tuple[str, ...] | None  # None: every registered model and the peer problems
+    models: tuple[str, ...] | None  # None: every registered model
     directions: int | None
     grids: tuple[int, ...]
     max_iter: int
@@ -103,15 +94,14 @@ class Suite:
     bvp_tols: tuple[float, ...] = ()
 
 
-STANDARD_MODELS = PAPER_MODELS + PLUGIN_MODELS + FRICTION_MODELS + PEER_PROBLEMS + LONG_HORIZON + USER_FRICTION
-SUITES = {
-    "quick": Suite("quick", ("paper-7.1", "block-stop-stick", "slide-after-reaching") + PEER_PROBLEMS, 2,
+SUITES = {  # each suite's models: the catalogue's problems with the suite's tag (qdframe.bench.problems)
+    "quick": Suite("quick", problems.tagged("quick"), 2,
                    (11, 41, 161), max_iter=100, time_limit_s=30.0, accuracy=(1e-3,), other_grids=(11, 41),
                    peer_grids=(11, 41), bvp_tols=(1e-3, 1e-6)),
-    "standard": Suite("standard", STANDARD_MODELS, 2, (11, 101, 1001, 10001, 100001), max_iter=500,
+    "standard": Suite("standard", problems.tagged("standard"), 2, (11, 101, 1001, 10001, 100001), max_iter=500,
                       time_limit_s=30.0, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101),
                       peer_grids=(11, 51, 101, 201), bvp_tols=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8)),
-    "full": Suite("full", STANDARD_MODELS, None, (11, 101, 1001, 10001, 100001), max_iter=500, time_limit_s=600.0,
+    "full": Suite("full", problems.tagged("standard"), None, (11, 101, 1001, 10001, 100001), max_iter=500, time_limit_s=600.0,
                   every_line_search=True, accuracy=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8), other_grids=(11, 101, 1001),
                   peer_grids=(11, 51, 101, 201), bvp_tols=(1e-2, 1e-3, 1e-4, 1e-6, 1e-8)),
 }
@@ -119,8 +109,8 @@ SUITES = {
 
 @dataclass(frozen=True)
 class Case:
-    """One run. `peer` names the other tool (then `direction` is the peer's name and
-    `line_search` its inner solver), None for qdframe itself. The knob: `nodes` (qdframe's
+    """One run. `peer` names the other tool (a registered :class:`~.peer.Peer`; then
+    `direction` is the peer's name and `line_search` its inner solver), None for qdframe itself. The knob: `nodes` (qdframe's
     grid, nosnoc's N − 1 finite elements), `accuracy` (qdframe's ``accuracy=``, no grid
     given) or `tol` (solve_bvp's)."""
 
@@ -148,8 +138,8 @@ class Case:
     @property
     def solver(self) -> str:
         """The line of a work-precision diagram this run belongs to."""
-        if self.peer == "solve_bvp":
-            return "solve_bvp"
+        if self.peer is not None:
+            return make_peer(self.peer).line
         label = f"{self.direction} / {self.line_search}"
         if self.default:
             return "qdframe.solve(model)"
@@ -177,16 +167,14 @@ class Plan:
 
 
 def model_names() -> list[str]:
-    """Every model a sweep can run: the registered ones and the peer problems."""
-    return sorted(set(available("models")) | set(BENCH_MODELS))
+    """Every model a sweep can run: the registered ones."""
+    return sorted(available("models"))
 
 
 def resolve_model(name: str) -> InclusionModel:
-    """A model instance by name: the registry first, then the benchmark's own problems."""
+    """A registered model instance by name."""
     if name in available("models"):
         return lookup("models", name).obj()
-    if name in BENCH_MODELS:
-        return BENCH_MODELS[name]()
     raise UnknownNameError("model", name, model_names())
 
 
@@ -340,13 +328,7 @@ def plan(
                     # `--accuracy none` drops it too
                     cases.append(Case(model, direction, search, None, default_budget, time_limit_s, default=True))
     if peers:
-        for model in models:
-            if model in PEER_MODELS["nosnoc"]:
-                cases += [Case(model, "nosnoc", "ipopt", int(n), max_iter, time_limit_s, peer="nosnoc")
-                          for n in peer_grids]
-            if model in BVP_MODELS:
-                cases += [Case(model, "solve_bvp", "scipy", None, max_iter, time_limit_s, peer="solve_bvp", tol=float(e))
-                          for e in tols]
+        cases += _peer_cases(models, peer_grids, tols, max_iter, time_limit_s)
     settings = {
         "suite": suite,
         "models": list(models),
@@ -364,6 +346,24 @@ def plan(
         "claim_tol": CLAIM_TOL,
     }
     return Plan(cases, skipped, settings)
+
+
+def _peer_cases(models: Sequence[str], grids: Sequence[int], tols: Sequence[float], max_iter: int,
+                time_limit_s: float) -> list[Case]:
+    """Each registered peer's runs on the models it states: its grids or its tolerances."""
+    cases = []
+    for model in models:
+        instance = resolve_model(model)
+        for name in sorted(available("peers")):
+            peer = make_peer(name)
+            if not peer.states(instance):
+                continue
+            if peer.knob == "nodes":
+                cases += [Case(model, name, peer.inner, int(n), max_iter, time_limit_s, peer=name) for n in grids]
+            else:
+                cases += [Case(model, name, peer.inner, None, max_iter, time_limit_s, peer=name, tol=float(e))
+                          for e in tols]
+    return cases
 
 
 def _default_line_search(direction: str) -> str:
@@ -440,8 +440,8 @@ def run_case(case: Case) -> dict:
         if notes:
             row["message"] = "; ".join(filter(None, [row["message"], f"{len(notes)} warning(s), first: {notes[0][:200]}"]))
     except Exception as exc:  # a failing run is a result, not an abort
-        row.update(status="failed", message=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - clock)
-    row["found"] = row["status"] == "solved"
+        row.update(status=Status.FAILED, message=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - clock)
+    row["found"] = row["status"] == Status.SOLVED
     row["claim"] = claim(row)
     row["history"] = history
     return _finite(row)
@@ -453,7 +453,7 @@ def claim(row: dict) -> str:
     or unknown), "missed" (not solved, error ≤ claim_tol), "none" (neither)."""
     error, tol = row.get("error"), row.get("claim_tol")
     within = error is not None and tol is not None and error <= tol
-    if row.get("status") == "solved":
+    if row.get("status") == Status.SOLVED:
         return "confirmed" if within else "false"
     return "missed" if within else "none"
 
@@ -475,7 +475,7 @@ def _run_qdframe(case: Case, row: dict, history: dict) -> None:
     row["claim_tol"] = result.accuracy * max(1.0, float(np.max(np.abs(result.x))))
     status, message = result.status, result.message
     if isinstance(timed, _Deadline) and timed.expired:
-        status = "time_limit"
+        status = TIME_LIMIT
         message = f"time limit {case.time_limit_s:g} s reached after {result.iterations} iterations"
     row.update(status=status, message=message, iterations=result.iterations, wall_time_s=result.wall_time_s,
                nodes=result.nodes, objective=result.objective, I=result.I, boundary_error=result.boundary_error,
@@ -500,16 +500,12 @@ def scheme_velocity(result) -> SchemeRule:
 
 def _run_peer(case: Case, row: dict, history: dict) -> None:
     model = resolve_model(case.model)
-    if case.peer == "nosnoc":
-        peer = run_nosnoc(model, case.nodes)
-    elif case.peer == "solve_bvp":
-        peer = run_solve_bvp(model, case.tol)
-    else:
-        raise InputError("peer", "nosnoc or solve_bvp", case.peer)
+    runner = make_peer(case.peer)
+    peer = runner.run(model, case.nodes if runner.knob == "nodes" else case.tol)
     row.update(status=peer.status, message=peer.message, iterations=peer.iterations,
                wall_time_s=peer.wall_time_s, setup_time_s=peer.setup_time_s)
     if case.time_limit_s and peer.wall_time_s > case.time_limit_s:  # a peer is not interrupted: judged as if it were
-        row.update(status="time_limit", message=f"time limit {case.time_limit_s:g} s passed ({peer.status} after "
+        row.update(status=TIME_LIMIT, message=f"time limit {case.time_limit_s:g} s passed ({peer.status} after "
                                                 f"{peer.wall_time_s:.1f} s); {peer.message}")
     if peer.x is None:
         return
@@ -758,7 +754,7 @@ def _execute_dask(cases, on_row, scheduler, workers) -> None:
             except Exception as exc:  # the worker died or the task could not run
                 row = {name: None for name in FIELDS}
                 row.update(model=case.model, solver=case.solver, direction=case.direction, line_search=case.line_search,
-                           knob=case.knob, nodes=case.nodes, status="failed", found=False, claim="none",
+                           knob=case.knob, nodes=case.nodes, status=Status.FAILED, found=False, claim="none",
                            max_iter=case.max_iter,
                            time_limit_s=case.time_limit_s, message=f"dask: {type(exc).__name__}: {exc}",
                            history={"iteration": [], "objective": [], "I": [], "time_s": []})

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..argtypes import integer, names, node_counts, positive_float, tolerances, vector, writable
 from ..errors import InputError
-from .sweep import SUITES
+from .run import SUITES
 
 
 def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> None:
@@ -148,7 +148,7 @@ def _say(quiet: bool = False):
 
 
 def _directions(args: argparse.Namespace) -> int:
-    from .directions import bench_directions, format_table, write_json
+    from .compare_directions import bench_directions, format_table, write_json
 
     if args.json:
         writable("--json", args.json)
@@ -210,7 +210,7 @@ def _unknowns(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .references import cross_check
     from .report import ranking, ratio_table, time_table, write_report
-    from .sweep import plan, run_sweep
+    from .run import plan, run_sweep
 
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler", "to be used with --executor dask", args.scheduler)

@@ -1,4 +1,5 @@
-"""Peer: scipy.integrate.solve_bvp on the regularized ODE a user would write for each model.
+"""The solve_bvp peer (:class:`SolveBVP`, registered as ``solve_bvp``): scipy.integrate.solve_bvp
+on the regularized ODE a user would write for each model.
 
 solve_bvp (4th-order Lobatto IIIA collocation, Kierzenka & Shampine 2001) solves smooth
 two-point problems y' = f(t, y), bc(y(0), y(T)) = 0. It cannot take a set-valued right
@@ -18,7 +19,7 @@ mesh has to resolve a boundary layer of width O(ε) in time where the motion ent
 stick or sliding phase.
 
 The statements are the models' forms x' ∈ f(x) + Σ_j a_j(x)·Sgn(c_j(x)) of
-:mod:`.statements` (the ones nosnoc gets too) with every Sgn(c) replaced by sat(c/ε): e.g.
+:mod:`.sign_forms` (the ones nosnoc gets too; :mod:`.problems` says which model has which) with every Sgn(c) replaced by sat(c/ε): e.g.
 block-stop-stick p' = v, v' = −3·sat(v/ε) + 1; sliding-mode x2' = x1 − a·(|x1| + |x2|)·
 sat((2·x1 + x2)/ε); stick-slip-oscillator v' = −p − 0.1·sat(v/ε). Boundary
 conditions are the model's: y_i(0) = x0_i where x0_i is given (NaN: free), y_j(T) = xT_j
@@ -57,31 +58,45 @@ import numpy as np
 from scipy.integrate import solve_bvp
 
 from ..errors import InputError
-from ..models import friction
-from .peers import PeerRun, package_version
-from .statements import SIGN_MODELS, sign_form
+from ..model import InclusionModel
+from ..status import Status
+from . import problems
+from .peer import Peer, PeerRun, package_version
 
-STICK_SLIP_NAME = "stick-slip-oscillator"
-STICK_SLIP_FRICTION = friction.OSC_FRICTION  # p' = v, v' ∈ −p − 0.1·Sgn(v)
 INITIAL_NODES = 11
+
+
+class SolveBVP(Peer):
+    """scipy's solve_bvp on each model's regularized ODE, one run per tolerance (ε = tol)."""
+
+    name = "solve_bvp"
+    inner = "scipy"
+    line = "solve_bvp"
+    knob = "tol"
+    description = "scipy.integrate.solve_bvp on the regularized ODE sat(s/ε) in place of Sgn(s)"
+
+    def states(self, model: InclusionModel) -> bool:
+        return problems.sign_form(model) is not None and not model.n_controls
+
+    def run(self, model: InclusionModel, setting: float) -> PeerRun:
+        return run_solve_bvp(model, float(setting))
+
 
 def sat(s: np.ndarray, epsilon: float) -> np.ndarray:
     """The regularized sign clip(s/ε, −1, 1)."""
     return np.clip(s / epsilon, -1.0, 1.0)
 
 
-BVP_MODELS: tuple[str, ...] = SIGN_MODELS
-
-
 def statement(name: str, epsilon: float, model=None) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """fun(t, y) of model `name` regularized with ε, vectorized as solve_bvp wants: y (n, m) -> (n, m):
     its :class:`~.statements.SignForm` f(y) + Σ_j a_j(y)·sat(c_j(y)/ε). `model`: the instance, needed
     where the constants are its attributes (coulomb-block, sliding-mode)."""
-    if name not in BVP_MODELS:
-        raise InputError("model", f"one of {', '.join(BVP_MODELS)} (solve_bvp statements)", name)
+    entry = problems.problem(name)
+    if entry is None or entry.sign_form is None:
+        raise InputError("model", f"one of {', '.join(problems.with_sign_form())} (solve_bvp statements)", name)
     if not (np.isfinite(epsilon) and epsilon > 0):
         raise InputError("epsilon", "a positive finite number", epsilon)
-    form = sign_form(name, model)
+    form = entry.sign_form(model)
     eps = float(epsilon)
 
     def fun(t: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -135,12 +150,12 @@ def solve_statement(name: str, T: float, x0: Sequence[float], tol: float, epsilo
     rms = float(np.max(sol.rms_residuals)) if sol.rms_residuals is not None and sol.rms_residuals.size else float("nan")
     message = (f"scipy {package_version('scipy')} solve_bvp: {sol.message} (status {sol.status}) after {sol.niter} "
                f"iterations; {sol.x.size} mesh nodes, max rms residual {rms:.1e}; sat(s/ε) with ε = {eps:.1e}, tol {tol:.1e}")
-    return PeerRun("solved" if sol.success else "failed", message, int(sol.niter), wall, 0.0,
+    return PeerRun(Status.SOLVED if sol.success else Status.FAILED, message, int(sol.niter), wall, 0.0,
                    x=sol.y.T, z=sol.yp.T, t=sol.x)
 
 
 def run_solve_bvp(model, tol: float, epsilon: float | None = None, max_nodes: int = 100000) -> PeerRun:
-    """Solve `model` (one of :data:`BVP_MODELS`) with scipy's solve_bvp on its regularized statement.
+    """Solve `model` (one with a sign form in :mod:`.problems`) with scipy's solve_bvp on its regularized statement.
 
     Initial mesh: 11 uniform nodes on [0, T]; initial guess: the model's ``initial_guess``
     (x0 held constant unless the model says otherwise); ε defaults to `tol` (one knob: a
@@ -149,8 +164,8 @@ def run_solve_bvp(model, tol: float, epsilon: float | None = None, max_nodes: in
     wall_time_s is the whole call, setup_time_s 0, iterations solve_bvp's Newton iterations.
     """
     start = time.perf_counter()
-    if model.name not in BVP_MODELS:
-        raise InputError("model", f"one of {', '.join(BVP_MODELS)} (solve_bvp statements)", model.name)
+    if problems.sign_form(model) is None:
+        raise InputError("model", f"one of {', '.join(problems.with_sign_form())} (solve_bvp statements)", model.name)
     if model.n_controls:
         raise InputError("model", "a model without unknown controls (solve_bvp statements)", model.name)
     run = solve_statement(model.name, model.T, model.x0, tol, epsilon, max_nodes, model.end_indices,

@@ -1,4 +1,5 @@
-"""The peers' statement of each friction and sliding model, written once.
+"""The peers' statement of each friction and sliding model, written once (the problem
+catalogue, :mod:`.problems`, says which model has which).
 
 Every model here is, in Filippov's sense,
 
@@ -7,8 +8,8 @@ Every model here is, in Filippov's sense,
 one switching function c_j per sign term (a term that appears in several equations is one
 c_j with a vector a_j). A :class:`SignForm` holds f and the pairs (a_j, c_j) as functions of
 the state's components, written with + − ×, abs() and :func:`sin` only, so the same form evaluates on
-NumPy rows (solve_bvp's regularized right side, :mod:`.bvp_peer`) and on CasADi symbols
-(nosnoc's Stewart subsystems, :mod:`.peers`). The physics is the models' docstrings'
+NumPy rows (solve_bvp's regularized right side, :mod:`.solve_bvp_peer`) and on CasADi symbols
+(nosnoc's Stewart subsystems, :mod:`.nosnoc_peer`). The physics is the models' docstrings'
 (friction −μ·Sgn(v); qdframe codes it as μ·Sgn(−v), the same set).
 
 =======================  ===========================================================
@@ -38,7 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..models import friction, user_friction
+from ..models import exact_friction as friction
+from ..models import user_friction
 
 Components = Sequence  # the state's components: NumPy rows or CasADi scalars
 
@@ -52,50 +54,50 @@ class SignForm:
     terms: Callable[[Components], list[tuple[list, object]]]
 
 
-def _block_stop_stick(model) -> SignForm:
+def block_stop_stick(model) -> SignForm:
     mu, pull = friction.STOP_FRICTION, friction.STOP_PULL
     return SignForm(lambda x: [x[1], pull], lambda x: [([0.0, -mu], x[1])])
 
 
-def _block_breakaway(model) -> SignForm:
+def block_breakaway(model) -> SignForm:
     mu, ramp = friction.BREAK_FRICTION, friction.BREAK_RAMP
     return SignForm(lambda x: [x[1], ramp * x[2], 1.0], lambda x: [([0.0, -mu, 0.0], x[1])])
 
 
-def _slide_on_line(model) -> SignForm:
+def slide_on_line(model) -> SignForm:
     gain = friction.LINE_GAIN
     return SignForm(lambda x: [x[1], 0.0], lambda x: [([0.0, -gain], x[0] + x[1])])
 
 
-def _two_surface(model) -> SignForm:
+def two_surface(model) -> SignForm:
     a1, a2, b = friction.TWO_A1, friction.TWO_A2, friction.TWO_B
     return SignForm(lambda x: [a1, a2], lambda x: [([-1.0, 0.0], x[0]), ([-b, -1.0], x[1])])
 
 
-def _coulomb_block(model) -> SignForm:
-    _need(model, "coulomb-block")
+def coulomb_block(model) -> SignForm:
+    _need(model)
     mass, mu, normal, pull = model.mass, model.mu, model.normal_force, model.pull
     return SignForm(lambda x: [x[1], pull / mass], lambda x: [([0.0, -mu * normal / mass], x[1])])
 
 
-def _sliding_mode(model) -> SignForm:
-    _need(model, "sliding-mode")
+def sliding_mode(model) -> SignForm:
+    _need(model)
     gain, slope = model.gain, model.slope
     return SignForm(lambda x: [x[1], x[0]],
                     lambda x: [([0.0, -gain * (abs(x[0]) + abs(x[1]))], slope * x[0] + x[1])])
 
 
-def _stick_slip(model) -> SignForm:
+def stick_slip(model) -> SignForm:
     mu = friction.OSC_FRICTION
     return SignForm(lambda x: [x[1], -x[0]], lambda x: [([0.0, -mu], x[1])])
 
 
-def _pendulum(model) -> SignForm:
+def pendulum(model) -> SignForm:
     g, damping, mu = user_friction.PENDULUM_GRAVITY, user_friction.PENDULUM_DAMPING, user_friction.PENDULUM_FRICTION
     return SignForm(lambda x: [x[1], -g * sin(x[0]) - damping * x[1]], lambda x: [([0.0, -mu], x[1])])
 
 
-def _two_block_chain(model) -> SignForm:
+def two_block_chain(model) -> SignForm:
     wall, link, pull = user_friction.CHAIN_WALL, user_friction.CHAIN_LINK, user_friction.CHAIN_PULL
     mu1, mu2 = user_friction.CHAIN_FRICTION
 
@@ -106,7 +108,7 @@ def _two_block_chain(model) -> SignForm:
     return SignForm(base, lambda x: [([0.0, -mu1, 0.0, 0.0], x[1]), ([0.0, 0.0, 0.0, -mu2], x[3])])
 
 
-def _relay(model) -> SignForm:
+def relay(model) -> SignForm:
     return SignForm(lambda x: [x[1], 0.0], lambda x: [([0.0, -1.0], x[0])])
 
 
@@ -115,30 +117,6 @@ def sin(value):
     return value.sin() if hasattr(value, "sin") else np.sin(value)
 
 
-def _need(model, name: str) -> None:
+def _need(model) -> None:
     if model is None:
-        raise InputError("model", f"the {name} model instance (its constants are its attributes)", None)
-
-
-FORMS: dict[str, Callable[[object], SignForm]] = {
-    "block-stop-stick": _block_stop_stick,
-    "block-stop-stick-bvp": _block_stop_stick,
-    "block-breakaway": _block_breakaway,
-    "slide-on-line": _slide_on_line,
-    "slide-after-reaching": _slide_on_line,
-    "two-surface-sliding": _two_surface,
-    "coulomb-block": _coulomb_block,
-    "sliding-mode": _sliding_mode,
-    "stick-slip-oscillator": _stick_slip,
-    "pivot-friction-pendulum": _pendulum,
-    "two-block-chain": _two_block_chain,
-    "relay-oscillator": _relay,
-}
-SIGN_MODELS: tuple[str, ...] = tuple(FORMS)
-
-
-def sign_form(name: str, model=None) -> SignForm:
-    """The :class:`SignForm` of model `name` (`model`: its instance, for constants held there)."""
-    if name not in FORMS:
-        raise InputError("model", f"one of {', '.join(SIGN_MODELS)} (the peers' statements)", name)
-    return FORMS[name](model)
+        raise InputError("model", "the model instance (its constants are its attributes)", None)

@@ -1,4 +1,5 @@
-"""Independent statements of qdframe's friction and sliding models: reference solutions for the benchmarks.
+"""Independent statements of qdframe's friction and sliding models: reference solutions for the benchmarks
+(the problem catalogue, :mod:`.problems`, says which model has which).
 
 Each model is written here by hand, from its equations (its parameters read from the model),
 in the separable form
@@ -10,22 +11,21 @@ the event-driven Filippov integrator (:func:`qdframe.filippov.integrate`: DOP853
 events, rtol = atol = 1e-12, sliding by its equivalent control). Nothing of qdframe's model
 layer or solver is used: these statements are the benchmark's second reading of each model.
 
-:func:`statement` writes the models in this form, :func:`reference` integrates them from
-their start over [0, T].
+:func:`.problems.statement` states a catalogue problem in this form,
+:func:`.problems.reference` integrates it from its start over [0, T]. A model judged by
+the motion its input drives recovers that input from a trajectory by one of the
+functions at the end (:func:`coulomb_force`, :func:`sliding_inputs`, :func:`paper_control`).
 """
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..filippov import FilippovError, Fields, FilippovSystem, FilippovTrajectory, integrate
-
-__all__ = ["FilippovError", "FilippovSystem", "FilippovTrajectory", "SignSwitch", "integrate", "reference",
-           "separable", "start", "statement"]
+from ..filippov import Fields, FilippovSystem
 
 Input = Callable[[float], np.ndarray]
 
@@ -92,28 +92,28 @@ def _constants(model) -> dict:
     return vars(sys.modules[type(model).__module__])
 
 
-def _block_stop_stick(model, inputs: Input | None) -> FilippovSystem:
+def block_stop_stick(model, inputs: Input | None) -> FilippovSystem:
     k = _constants(model)
     pull, friction = k["STOP_PULL"], k["STOP_FRICTION"]
     return separable(lambda t, x: np.array([x[1], pull]),
                      (_coordinate_switch(1, 2, _constant(friction), "μg·Sgn(v)"),), model.name)
 
 
-def _block_breakaway(model, inputs: Input | None) -> FilippovSystem:
+def block_breakaway(model, inputs: Input | None) -> FilippovSystem:
     k = _constants(model)
     ramp, friction = k["BREAK_RAMP"], k["BREAK_FRICTION"]
     return separable(lambda t, x: np.array([x[1], ramp * x[2], 1.0]),
                           (_coordinate_switch(1, 3, _constant(friction), "μg·Sgn(v)"),), model.name)
 
 
-def _slide_on_line(model, inputs: Input | None) -> FilippovSystem:
+def slide_on_line(model, inputs: Input | None) -> FilippovSystem:
     gain = _constants(model)["LINE_GAIN"]
     surface = SignSwitch(lambda x: x[0] + x[1], lambda x: np.array([1.0, 1.0]), _unit(1, 2), _constant(gain),
                          "a·Sgn(x1 + x2)")
     return separable(lambda t, x: np.array([x[1], 0.0]), (surface,), model.name)
 
 
-def _two_surface(model, inputs: Input | None) -> FilippovSystem:
+def two_surface(model, inputs: Input | None) -> FilippovSystem:
     k = _constants(model)
     a1, a2, b = k["TWO_A1"], k["TWO_A2"], k["TWO_B"]
     return separable(lambda t, x: np.array([a1, a2]),
@@ -121,26 +121,26 @@ def _two_surface(model, inputs: Input | None) -> FilippovSystem:
                            _coordinate_switch(1, 2, _constant(1.0), "Sgn(x2)", np.array([b, 1.0]))), model.name)
 
 
-def _stick_slip_oscillator(model, inputs: Input | None) -> FilippovSystem:
+def stick_slip_oscillator(model, inputs: Input | None) -> FilippovSystem:
     friction = _constants(model)["OSC_FRICTION"]
     return separable(lambda t, x: np.array([x[1], -x[0]]),
                           (_coordinate_switch(1, 2, _constant(friction), "μ·Sgn(v)"),), model.name)
 
 
-def _coulomb_block(model, inputs: Input | None) -> FilippovSystem:
+def coulomb_block(model, inputs: Input | None) -> FilippovSystem:
     pull, gain = model.pull / model.mass, model.mu * model.normal_force / model.mass
     return separable(lambda t, x: np.array([x[1], pull]),
                           (_coordinate_switch(1, 2, _constant(gain), "μ·F_N·Sgn(v)/m"),), model.name)
 
 
-def _sliding_mode(model, inputs: Input | None) -> FilippovSystem:
+def sliding_mode(model, inputs: Input | None) -> FilippovSystem:
     slope, gain = model.slope, model.gain
     surface = SignSwitch(lambda x: slope * x[0] + x[1], lambda x: np.array([slope, 1.0]), _unit(1, 2),
                          lambda _t, x: gain * (abs(x[0]) + abs(x[1])), "a·|x|·Sgn(s)")
     return separable(lambda t, x: np.array([x[1], x[0]]), (surface,), model.name)
 
 
-def _coulomb_rest_to_rest(model, inputs: Input | None) -> FilippovSystem | None:
+def coulomb_rest_to_rest(model, inputs: Input | None) -> FilippovSystem | None:
     if inputs is None:
         return None
     u = _input(inputs, 1)
@@ -148,7 +148,7 @@ def _coulomb_rest_to_rest(model, inputs: Input | None) -> FilippovSystem | None:
                           (_coordinate_switch(1, 2, _constant(model.friction), "F·Sgn(v)"),), model.name)
 
 
-def _sliding_mode_terminal(model, inputs: Input | None) -> FilippovSystem | None:
+def sliding_mode_terminal(model, inputs: Input | None) -> FilippovSystem | None:
     if inputs is None:
         return None
     k = _constants(model)
@@ -161,7 +161,7 @@ def _sliding_mode_terminal(model, inputs: Input | None) -> FilippovSystem | None
     return separable(lambda t, x: np.concatenate([x[2:4], w(t)]), (c1, c2), model.name)
 
 
-def _paper_73(model, inputs: Input | None) -> FilippovSystem | None:
+def paper_73(model, inputs: Input | None) -> FilippovSystem | None:
     if inputs is None:
         return None
     k = _constants(model)
@@ -178,61 +178,37 @@ def _paper_73(model, inputs: Input | None) -> FilippovSystem | None:
                           model.name)
 
 
-STATEMENTS: dict[str, Callable] = {
-    "block-stop-stick": _block_stop_stick,
-    "block-stop-stick-bvp": _block_stop_stick,
-    "block-breakaway": _block_breakaway,
-    "slide-on-line": _slide_on_line,
-    "slide-after-reaching": _slide_on_line,
-    "two-surface-sliding": _two_surface,
-    "stick-slip-oscillator": _stick_slip_oscillator,
-    "coulomb-block": _coulomb_block,
-    "sliding-mode": _sliding_mode,
-    "coulomb-rest-to-rest": _coulomb_rest_to_rest,
-    "sliding-mode-terminal": _sliding_mode_terminal,
-    "paper-7.3": _paper_73,
-    "paper-7.3-reduced": _paper_73,
-}
+# ------------------------------------------------------------------ inputs from a trajectory
+RESTING = 1e-7  # |v| below this counts as v = 0 when an input is recovered from a trajectory (10× the residual tolerance: a solved block at rest has |v| up to ~1e-8)
 
 
-def statement(model, inputs: Input | None = None) -> FilippovSystem | None:
-    """The separable Filippov system x' ∈ g − Σ a_i·Sgn(c_i)·b_i of a qdframe model, by `model.name`,
-    its parameters read from the model (class attributes, module constants); None for a model
-    it cannot state, or one that needs `inputs` when none is given.
+def coulomb_force(x, z, u, model, selections=None) -> np.ndarray | list[np.ndarray]:
+    """v' = u − F·σ with σ ∈ Sgn(v): u = clip(z_v + F·σ, ±U), σ the trajectory's own
+    selection where it gives one (the model's term is F·λ with λ ∈ Sgn(−v): σ = −λ), else
+    sign(v), 0 at rest (at rest any |u| ≤ F keeps the block there, and u = z_v = 0 says so).
+    Without selections the point where the block comes to rest is undetermined: its z_v may
+    be the deceleration of the interval that ends there (σ the sign before it) or already
+    the rest's (σ = 0, where the block stops between two points): both candidates."""
+    def force(sign: np.ndarray) -> np.ndarray:
+        return np.clip(z[:, 1] + model.friction * sign, -model.force_bound, model.force_bound)[:, None]
 
-    Friction −μ·Sgn(v) (coded by qdframe as μ·Sgn(−v)) is stated with c = v, a = μ, b = e_v.
-    Covered: block-stop-stick (and -bvp: the same system; its p(0) is free, :func:`reference`
-    starts from the model's exact solution at 0), block-breakaway (x = (p, v, clock), the pull
-    k·clock), slide-on-line, slide-after-reaching, two-surface-sliding (x2's switch acts on
-    both coordinates, b = (0.5, 1)), stick-slip-oscillator, coulomb-block, sliding-mode
-    (Utkin, a = gain·(|x1| + |x2|)), and with `inputs(t)`: coulomb-rest-to-rest (the force
-    u(t): p' = v, v' ∈ u − F·Sgn(v)), sliding-mode-terminal (w(t) = (v1', v2'):
-    x1' ∈ v1 − Sgn(c1), x2' ∈ v2 − Sgn(c2), v' = w), paper-7.3 and paper-7.3-reduced
-    (u(t) on x6'; a = 1.05·|x|_1 on x4, 0.3 on x5 and x6). An `inputs` with a `breaks`
-    attribute (times of its jumps) passes them to the system.
-    """
-    build = STATEMENTS.get(getattr(model, "name", ""))
-    system = None if build is None else build(model, inputs)
-    if system is None or not getattr(inputs, "breaks", ()):
-        return system
-    return replace(system, breaks=tuple(inputs.breaks))
+    if selections is not None:
+        return force(-np.asarray(selections, float)[:, 0])
+    velocity = x[:, 1]
+    rest = np.where(np.abs(velocity) <= RESTING, 0.0, np.sign(velocity))
+    stops = np.flatnonzero((rest[1:] == 0.0) & (rest[:-1] != 0.0)) + 1
+    keep = rest.copy()
+    keep[stops] = rest[stops - 1]
+    return [force(keep), force(rest)] if stops.size else force(rest)
 
 
-def start(model) -> np.ndarray | None:
-    """model.x0, its NaN entries (free starts) taken from the model's exact solution at 0; None if unknown."""
-    x0 = np.array(model.x0, dtype=float)
-    if np.all(np.isfinite(x0)):
-        return x0
-    exact = model.exact_solution(np.array([0.0]))
-    if exact is None:
-        return None
-    return np.where(np.isfinite(x0), x0, exact[0])
+def sliding_inputs(x, z, u, model, selections=None) -> np.ndarray:
+    """v' = w with |w_i| ≤ 10: w = clip(z_v, ±10)."""
+    return np.clip(z[:, 2:4], -model.input_bound, model.input_bound)
 
 
-def reference(model, inputs: Input | None = None, rtol: float = 1e-12, atol: float = 1e-12) -> FilippovTrajectory | None:
-    """The Filippov motion of `model` over [0, model.T] from :func:`start`, by :func:`integrate`;
-    None when :func:`statement` cannot state the model or its start is unknown."""
-    system, x0 = statement(model, inputs), start(model)
-    if system is None or x0 is None:
-        return None
-    return integrate(system, x0, model.T, rtol, atol)
+def paper_control(x, z, u, model, selections=None) -> np.ndarray:
+    """Example 7.3's control u, a column of the trajectory itself."""
+    if u is None or np.size(u) == 0:
+        raise ValueError("paper-7.3: a trajectory without its control u cannot be replayed")
+    return np.asarray(u, float)

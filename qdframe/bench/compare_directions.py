@@ -39,8 +39,9 @@ from ..errors import BackendError, QdframeError
 from ..functional import Functional
 from ..grid import Grid
 from ..registry import available
+from . import problems
 
-PAPER_MODELS = ("paper-7.1", "paper-7.2")
+MODELS = problems.tagged("directions")  # the paper's examples 7.1 and 7.2
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ class _Recorder(NativeDirection):
 def paper_instances(nodes: int, iterations: int = 4) -> list[Instance]:
     """The min-norm batches of the first iterations of native descents on the paper examples."""
     instances = []
-    for name in PAPER_MODELS:
+    for name in MODELS:
         model = load_model(name)
         recorder = _Recorder()
         descend(Functional(model, Grid(model.T, nodes)), recorder, make_line_search("golden"), DescentOptions(max_iter=iterations))
