@@ -207,13 +207,14 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     if blocked is not None:
         where, point, error, why = blocked
         raise located(functional, point, error, where, why) from error
+    remarks = []
     if eps < options.eps and status != Status.SOLVED:
-        message += f"; ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else "")
+        remarks.append(f"ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else ""))
     if rejected and status != Status.SOLVED:
-        message += (f"; {rejected} line-search trial point(s) rejected where the model is non-finite"
-                    + (f" (last: {rejected_label})" if rejected_label else ""))
+        remarks.append(f"{rejected} line-search trial point(s) rejected where the model is non-finite"
+                       + (f" (last: {rejected_label})" if rejected_label else ""))
     return result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
-                     message, history, time.perf_counter() - clock)
+                     message, remarks, history, time.perf_counter() - clock)
 
 
 def _record(functional: Functional, iteration: int, xi: np.ndarray, terms, gamma: float, step: np.ndarray | None,

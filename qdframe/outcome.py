@@ -61,7 +61,7 @@ def residuals_disagree(functional: Functional, residuals, I: float) -> str:
 
 
 def result_of(functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
-              xi: np.ndarray, status: Status, message: str, history: list[IterationRecord],
+              xi: np.ndarray, status: Status, reason: str, remarks: list[str], history: list[IterationRecord],
               elapsed: float) -> SolveResult:
     """The result of a descent that ended at ξ with `status`: its terms, residuals and
     pointwise checks; `solved` becomes `failed` where I ≤ tol contradicts a residual
@@ -72,13 +72,13 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
     if status == Status.SOLVED:
         disagreement = residuals_disagree(functional, residuals, terms.I)
         if disagreement:
-            status, message = Status.FAILED, f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
+            status, reason = Status.FAILED, f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
     found = certify.checks(functional, xi, options.residual_tol)
     if status != Status.SOLVED and terms.objective <= options.tol and terms.I <= options.tol:
-        message += f"; I = {terms.I:.1e} ≤ tol but not pointwise: {certify.failures(found)}"
+        remarks = [*remarks, f"I = {terms.I:.1e} ≤ tol but not pointwise: {certify.failures(found)}"]
     if status in (Status.STATIONARY, Status.MAX_ITER) and terms.I > options.tol:  # I bounded away from 0: name where it sits
         diagnosis = unmet_conditions(functional, xi, options.residual_tol)
-        message += f"; {diagnosis}" if diagnosis else ""
+        remarks = [*remarks, diagnosis] if diagnosis else remarks
     x, z = functional.split(xi)
     with plugin_code(model, "exact_solution()"):
         exact = model.exact_solution(functional.grid.t)
@@ -94,7 +94,8 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
         nodes=functional.grid.nodes,
         T=model.T,
         status=status,
-        message=message,
+        reason=reason,
+        remarks=list(remarks),
         iterations=len(history) - 1,
         wall_time_s=elapsed,
         objective=terms.objective,

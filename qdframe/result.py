@@ -41,7 +41,7 @@ class SolveResult:
     nodes: int
     T: float
     status: str
-    message: str
+    reason: str  # how the run ended, in words ("" when solved): the message's first part
     iterations: int
     wall_time_s: float
     objective: float
@@ -72,6 +72,12 @@ class SolveResult:
     accuracy: float | None = None  # the target: solved promises error_estimate ≤ accuracy·max(1, max|x|)
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
     parameters: dict[str, float] = field(default_factory=dict)  # the unknown parameters found (qdframe.unknowns)
+    remarks: list[str] = field(default_factory=list)  # what is said of the run after its reason: checks, diagnosis, estimate
+
+    @property
+    def message(self) -> str:
+        """The reason and the remarks in one line, joined by "; "."""
+        return "; ".join(part for part in (self.reason, *self.remarks) if part)
 
     @property
     def solved(self) -> bool:
@@ -178,6 +184,7 @@ class SolveResult:
     def to_dict(self) -> dict[str, Any]:
         data = {k: v for k, v in self.__dict__.items() if k != "history"}
         data["converged"] = self.converged  # a property: the discrete problem solved
+        data["message"] = self.message  # a property: the reason and the remarks
         data["history"] = [asdict(record) for record in self.history]
         return _plain(data)
 

@@ -278,7 +278,7 @@ def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
         if result.status == Status.FAILED:
             if not last:
                 band = " (band start)" if functional.signs != plan.signs else ""
-                result.message = f"on the grid of {count} nodes{band}: {result.message}"
+                result.reason = f"on the grid of {count} nodes{band}: {result.reason}"
             break
     result = _not_worse_than_start(functional, plan, result)
     result.history = history
@@ -306,12 +306,12 @@ def _not_worse_than_start(functional: Functional, plan: _Plan, result: SolveResu
     first = functional.initial_point()
     if result.status == Status.FAILED or not functional.objective(first) < result.objective:
         return result
-    reached = result.message.partition("; ")[0]  # how the descent ended, not its diagnosis of that iterate
+    reached = result.reason  # how the descent ended, not its diagnosis of that iterate
     result = descend(functional, plan.solver, plan.search, dataclasses.replace(plan.options, max_iter=0), None, first)
-    unmet = result.message.partition("; ")[2]  # the diagnosis of the start, which is returned
     result.status = Status.STATIONARY
-    result.message = (f"{reached}; the model's start is better than the iterate reached: returned unchanged"
-                      + (f"; {unmet}" if unmet else ""))
+    result.reason = reached
+    # then the diagnosis of the start, which is returned
+    result.remarks = ["the model's start is better than the iterate reached: returned unchanged", *result.remarks]
     return result
 
 
@@ -330,12 +330,10 @@ def _summarized(plan: _Plan, run: _Run, functional: Functional, result: SolveRes
                       "scheme": functional.grid.scheme.name, "signs": plan.signs,
                       "selection_scale": plan.selection_scale, "uniform": functional.grid.uniform}
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
-    if result.status == Status.MAX_ITER:  # the whole budget, and any remark of the last descent after "; "
-        remark = result.message.partition("; ")[2]
-        result.message = (f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
-                          + (f"; {remark}" if remark else ""))
+    if result.status == Status.MAX_ITER:  # the whole budget, over all grids
+        result.reason = f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
     elif result.status != Status.SOLVED and len(grids) > 1:
-        result.message += f"; {result.iterations} iterations: {spent}"
+        result.remarks.append(f"{result.iterations} iterations: {spent}")
     return result
 
 

@@ -400,6 +400,6 @@ def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
         bound = out.accuracy * max(1.0, float(np.max(np.abs(out.x))))
         if estimate > bound:
             out.status = Status.UNCERTIFIED
-            out.message = (f"{out.message}; the scaled problem is certified, but with T free the error at the "
-                           f"model's times, estimate {estimate:.1e}, exceeds the target {bound:.1e}")
+            out.remarks = [*out.remarks, f"the scaled problem is certified, but with T free the error at the "
+                                         f"model's times, estimate {estimate:.1e}, exceeds the target {bound:.1e}"]
     return out

@@ -97,7 +97,7 @@ def certify_result(functional: Functional, result: SolveResult, solver: Directio
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:
-        result.message = _join(result.message, note)
+        result.remarks.append(note)
     return functional, result
 
 
