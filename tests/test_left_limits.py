@@ -16,7 +16,7 @@ from qdframe.descent import DescentOptions
 from qdframe.steps import watchdog
 from qdframe.registry import make_direction
 from qdframe.directions.base import Direction, DirectionSolver
-from qdframe.directions.gauss_newton import _System
+from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
 from qdframe.errors import InputError
 from qdframe.grid import Grid
@@ -65,13 +65,13 @@ def test_gauss_newtons_rows_of_a_left_limit_are_its_linearization():
     """A change of λ_{k−1} alone (off the clip's kinks) moves r_k = λ_k − λ_{k−1} by −dλ: the
     Jacobian's extra column predicts it exactly."""
     functional, xi, k = _two_surfaces_at_a_pinned_point()
-    system = _System(functional, xi, 1e-3)
+    system = LinearizedSystem(functional, xi, 1e-3)
     d = np.zeros((functional.grid.nodes, system.width))
     lam_col = 2 * functional.n + functional.m  # the first selection's column in the extended unknowns
     d[k - 1, lam_col] = 1e-3  # λ_{k−1} = 1 → 1.001: still off the surface, its own row λ − 1, row k linear
     moved = xi.copy()
     moved[k - 1, lam_col] += 1e-3
-    after = _System(functional, moved, 1e-3).residual
+    after = LinearizedSystem(functional, moved, 1e-3).residual
     assert np.allclose(system.residual + system.jacobian @ d.ravel(), after, atol=1e-12, rtol=0)
 
 

@@ -144,9 +144,9 @@ def _factor_floor(functional, xi: np.ndarray) -> tuple[float, int, int]:
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    from ..directions.gauss_newton import _System
+    from ..directions.linearized_system import LinearizedSystem
 
-    system = _System(functional, xi, 1e-3)
+    system = LinearizedSystem(functional, xi, 1e-3)
     J, E = system.jacobian, system.constraints
     damping = np.zeros((system.nodes, system.width))
     damping[:, : 2 * system.n + system.m] = functional.weights[:, None]

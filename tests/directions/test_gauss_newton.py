@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.directions.gauss_newton import GaussNewton, _System
+from qdframe.directions.gauss_newton import GaussNewton, Step
+from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 
@@ -50,8 +51,8 @@ def test_step_equals_a_dense_levenberg_marquardt_step(seed):
     mu = 0.3
     W = np.repeat(functional.weights, xi.shape[1]).reshape(xi.shape).ravel()[free]
     expected = np.linalg.solve(J.T @ J + mu * np.diag(W), -J.T @ r0)
-    system = _System(functional, xi, delta=1e-3)
-    step_ext, predicted, slope = system.solve(mu)
+    system = LinearizedSystem(functional, xi, delta=1e-3)
+    step_ext, predicted, slope, _ = Step(system).solve(mu)
     step = system.unknowns_step(step_ext).ravel()
     assert np.allclose(step[free], expected, rtol=1e-5, atol=1e-7)
     assert np.all(step[~free] == 0)
@@ -135,17 +136,17 @@ def test_the_active_set_step_minimizes_the_step_qp(model_index, seed, exact, mon
     x[0] = model.x0
     xi = functional.pack(x, z)
     mu = 1e-4
-    system = _System(functional, xi, delta=1e-3)
-    d, predicted, _ = system.solve(mu)
-    settled = system.settled
+    system = LinearizedSystem(functional, xi, delta=1e-3)
+    step = Step(system)
+    d, predicted, _, settled = step.solve(mu)
     assert settled is not None, "the active-set iteration fell back to the QP"
     # the guesses change the tied pieces, not the pattern of the constraint rows: one analysis
-    assert system.kkt.analyses == 1
-    J, lam, damping = system.jacobian, system.penalty, mu * system._damping()
+    assert step.kkt.analyses == 1
+    J, lam, damping = system.jacobian, system.penalty, mu * system.damping()
     hessian = (lam * (J.T @ J) + gn.sp.diags(damping)).tocsc()
     clarabel = gn.make_step_qp("clarabel")  # the raw QP step (no polish by the active-set iteration)
-    d_qp, predicted_qp, _ = system._solve_qp(lambda reduced: hessian, lam * (J.T @ system.residual), clarabel,
-                                             polish=False, previous=None)
+    d_qp, predicted_qp, *_ = step.qp.solve(lambda reduced: hessian, lam * (J.T @ system.residual), clarabel,
+                                           polish=False, previous=None)
 
     def model_value(step, decrease):  # the QP's objective, up to the constant I(ξ)
         return -decrease + 0.5 * float(damping @ step**2)
@@ -157,8 +158,8 @@ def test_the_active_set_step_minimizes_the_step_qp(model_index, seed, exact, mon
     solves = []
     real = gn.solve_kkt
     monkeypatch.setattr(gn, "solve_kkt", lambda *args, **kwargs: solves.append(1) or real(*args, **kwargs))
-    again = _System(functional, xi, delta=1e-3)
-    d_warm, predicted_warm, _ = again.solve(mu, warm=settled)
+    again = Step(LinearizedSystem(functional, xi, delta=1e-3))
+    d_warm, predicted_warm, *_ = again.solve(mu, warm=settled)
     # the same step, to the rounding of another pivot order (a fresh KKTSolver's own analysis)
     assert len(solves) == 1 and np.allclose(d_warm, d, rtol=0, atol=1e-9 * np.abs(d).max())
     assert np.isclose(predicted_warm, predicted, rtol=1e-12)

@@ -7,8 +7,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import qdframe
-from qdframe.directions.gauss_newton import _System
 from qdframe.directions.kkt import KKTSolver, solve_kkt
+from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 
@@ -93,9 +93,9 @@ def test_gauss_newton_system_matches_superlu(name):
     fresh SuperLU spsolve of the unpermuted matrix."""
     model = qdframe.load_model(name)
     functional = Functional(model, Grid(model.T, 201, model.default_scheme))
-    system = _System(functional, functional.initial_point(), 1e-3)
+    system = LinearizedSystem(functional, functional.initial_point(), 1e-3)
     J, E = system.jacobian, system.constraints
-    hessian = (system.penalty * (J.T @ J) + 1e-12 * sp.diags(system._damping())).tocsc()
+    hessian = (system.penalty * (J.T @ J) + 1e-12 * sp.diags(system.damping())).tocsc()
     gradient = system.penalty * (J.T @ system.residual)
     kkt = sp.bmat([[hessian, E.T], [E, None]], format="csc")
     right = np.concatenate([-gradient, np.zeros(E.shape[0])])

@@ -1,0 +1,269 @@
+"""The linearized problem of a `gauss-newton` step (:mod:`.gauss_newton`), assembled at ξ.
+
+In the extended unknowns [x | z | u | Z] per node (u: the controls and the selections λ,
+Z = ∫_0^t z), :class:`LinearizedSystem` holds what the step's model reads:
+
+* r and J (one generalized-Jacobian element) of the least-squares residuals υ, χ, ω, the
+  point sets' φ and σ;
+* E, the equality constraints E d = 0 (the fixed start, Z_0 = 0, the resolved states and
+  the scheme's rule for Z);
+* the hinge rows of the sets' one-sided residuals h_b, √w_k·(ℓ_side + ∇ℓ_side·d);
+* the cost's pieces (max- and min-groups) and their linearizations;
+* the columns' map R of the constant states (one unknown x_i(t_0) for every node);
+
+and the model's value at a step d: its predicted decrease and the objective's slope along d.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+
+from .sparse_rows import RowBlocks
+
+if TYPE_CHECKING:
+    from ..functional import Functional
+
+
+class LinearizedSystem:
+    """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node."""
+
+    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float) -> None:
+        self.f = functional
+        n, m = functional.n, functional.m + functional.p  # u and the selections λ: both enter y
+        nodes = functional.grid.nodes
+        self.n, self.m, self.nodes = n, m, nodes
+        self.width = 3 * n + m  # per node: x, z, u, λ, Z
+        self.size = nodes * self.width
+        self.delta = delta
+        self.penalty = functional.penalty
+        self.value = functional.objective(xi)
+        blocks = functional.distance_sides(xi)
+        self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
+        # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
+        self.residual, self.jacobian = self._least_squares(xi, [block for block in blocks if block.equation])
+        del blocks
+        self.constraints = self._constraints()
+        # the cost's max- and min-groups: (values (N, m), gradients (N, m, n + m)) each
+        self.max_groups, self.min_groups = functional.cost_pieces(xi) if functional.cost is not None else ([], [])
+        self.columns = self._constant_columns()
+        self.R = None if self.columns is None else self._reduction()
+        self._hinge_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # :meth:`hinges`
+        self._min_linear: np.ndarray | None = None  # :meth:`min_linear`
+
+    # column indices of each variable at every node: (N, width)
+    def _columns(self, start: int, count: int) -> np.ndarray:
+        base = np.arange(self.nodes)[:, None] * self.width
+        return base + start + np.arange(count)[None, :]
+
+    def x_cols(self) -> np.ndarray:
+        return self._columns(0, self.n)
+
+    def z_cols(self) -> np.ndarray:
+        return self._columns(self.n, self.n)
+
+    def u_cols(self) -> np.ndarray:
+        return self._columns(2 * self.n, self.m)
+
+    def Z_cols(self) -> np.ndarray:
+        return self._columns(2 * self.n + self.m, self.n)
+
+    def y_cols(self) -> np.ndarray:
+        return np.concatenate([self.x_cols(), self.u_cols()], axis=1)
+
+    def unknowns_step(self, step: np.ndarray) -> np.ndarray:
+        """The step on ξ = [x | z | u] per node (dropping Z)."""
+        return step.reshape(self.nodes, self.width)[:, : 2 * self.n + self.m].copy()
+
+    def _constant_columns(self) -> np.ndarray | None:
+        """Where each column of the extended unknowns goes in the KKT systems: a constant state
+        (the model's `constant_states`, x_i' = 0: an unknown T or parameter) is one unknown
+        x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states."""
+        constant = [i for i in self.f.model.constant_states if i not in self.f.resolved]
+        if not constant:
+            return None
+        target = np.arange(self.size)
+        x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
+        target[x_cols[:, constant]] = x_cols[0, constant]
+        target[z_cols[:, constant]] = -1
+        target[Z_cols[:, constant]] = -1
+        own = target == np.arange(self.size)  # the columns that stay, in order
+        index = np.cumsum(own) - 1
+        return np.where(target >= 0, index[np.maximum(target, 0)], -1)
+
+    def _reduction(self) -> sp.csr_matrix:
+        """R (size × reduced): d = R·d_r, a constant state's x_i(t_k) all the column of x_i(t_0)."""
+        kept = self.columns >= 0
+        return sp.csr_matrix((np.ones(int(kept.sum())), (np.flatnonzero(kept), self.columns[kept])),
+                             shape=(self.size, int(self.columns.max()) + 1))
+
+    def reduced(self, matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
+        """matrix · R (R: the columns' map of :meth:`_constant_columns`), explicit zeros kept, and
+        which rows lost every entry they had (a constant state's own recursion rows)."""
+        matrix = sp.csr_matrix(matrix)
+        rows = matrix.shape[0]
+        row_of = np.repeat(np.arange(rows), np.diff(matrix.indptr))
+        target = self.columns[matrix.indices]
+        keep = target >= 0
+        reduced = sp.csr_matrix((matrix.data[keep], (row_of[keep], target[keep])),
+                                shape=(rows, int(self.columns.max()) + 1))
+        emptied = (np.diff(matrix.indptr) > 0) & (np.bincount(row_of[keep], minlength=rows) == 0)
+        return reduced, emptied
+
+    def _least_squares(self, xi: np.ndarray, equations: list) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The residuals r and J (one generalized-Jacobian element) of υ, χ, ω, the point
+        sets' φ (`equations`) and σ, row blocks in that order."""
+        f, nodes = self.f, self.nodes
+        root_w = np.sqrt(f.weights)
+        rows = RowBlocks(self.size)  # J, its exactly-zero entries left out (:mod:`.sparse_rows`)
+        residuals = []
+
+        def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
+            """res: (R,), col/val: (R, E) entries of R new rows."""
+            rows.add(col, val)
+            residuals.append(res)
+
+        consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
+        x_cols, Z_cols = self.x_cols(), self.Z_cols()
+        start_free = np.tile(~f.start_given, nodes)  # −√w_k on a free x_i(0) (0 where it is given)
+        add((root_w[:, None] * consistency).ravel(),
+            np.stack([x_cols.ravel(), Z_cols.ravel(), np.tile(x_cols[0], nodes)], axis=1),
+            np.stack([np.repeat(root_w, self.n), -np.repeat(root_w, self.n), -np.repeat(root_w, self.n) * start_free],
+                     axis=1))
+        end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
+        if end.size:
+            coords = np.concatenate([f.end, f.periodic])
+            starts = np.concatenate([~f.start_given[f.end], np.zeros(f.periodic.size, dtype=bool)])
+            add(end, np.stack([Z_cols[-1, coords], x_cols[0, coords]], axis=1),
+                np.stack([np.ones(end.size), starts.astype(float)], axis=1))
+        if f.surface is not None:  # ω
+            e, de = f.surface_values(xi)
+            o = e.shape[1]
+            add((root_w[:, None] * e).ravel(),
+                np.repeat(x_cols[:, None, :], o, axis=1).reshape(nodes * o, self.n),
+                (root_w[:, None, None] * de).reshape(nodes * o, self.n))
+        y_cols, z_cols = self.y_cols(), self.z_cols()
+        for block in equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
+            (ell, dell_dy, psi), = block.sides
+            add(root_w * ell, np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
+                root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
+        if f.p:  # σ: the selections' natural map
+            r, dr = f.selection_residual(xi)
+            cols = np.repeat(y_cols[:, None, :], f.p, axis=1)  # (N, p, width)
+            vals = root_w[:, None, None] * dr
+            left, held = f.left_limits(f.selections(xi))  # r_k = λ_k − λ_{k−1}: a −1 on λ_{k−1}
+            if left.size:
+                lam_cols = self.u_cols()[:, f.m :]  # (N, p)
+                extra_cols = lam_cols.copy()[:, :, None]  # elsewhere a zero on the row's own λ (left out)
+                extra_vals = np.zeros((nodes, f.p, 1))
+                extra_cols[left, :, 0] = lam_cols[left - 1]
+                extra_vals[left, :, 0] = np.where(held, -root_w[left, None], 0.0)
+                cols = np.concatenate([cols, extra_cols], axis=2)
+                vals = np.concatenate([vals, extra_vals], axis=2)
+            add((root_w[:, None] * r).ravel(), cols.reshape(nodes * f.p, -1), vals.reshape(nodes * f.p, -1))
+        return np.concatenate(residuals), rows.matrix()
+
+    def _constraints(self) -> sp.csr_matrix:
+        """E d = 0: dx_0 = 0 where x(t_0) is given, dZ_0 = 0, dz_i = dx_j for resolved states,
+        dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j = 0 (the scheme's rule)."""
+        n = self.n
+        x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
+        rows = RowBlocks(self.size)
+        fixed = np.concatenate([x_cols[0, self.f.start_given], Z_cols[0]])
+        rows.add(fixed[:, None], np.ones((fixed.size, 1)))
+        for i, j in self.f.resolved.items():  # dz_i = dx_j at every node
+            rows.add(np.stack([z_cols[:, i], x_cols[:, j]], axis=1),
+                     np.broadcast_to([1.0, -1.0], (self.nodes, 2)))
+        points, base, increments = self.f.grid.recursion()
+        # one row per point p ≥ 1 and state: dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j, the row p − 1 of the
+        # restricted A padded with zeros to its longest row (a zero entry is left out)
+        increments = sp.csr_matrix(increments)
+        counts = np.diff(increments.indptr)
+        width = int(counts.max(initial=0))
+        place = np.arange(increments.nnz) - np.repeat(increments.indptr[:-1], counts)
+        terms = np.zeros((points.size, width), dtype=increments.indices.dtype)
+        weights = np.zeros((points.size, width))
+        row_of = np.repeat(np.arange(points.size), counts)
+        terms[row_of, place] = increments.indices
+        weights[row_of, place] = -increments.data
+        cols = np.concatenate([Z_cols[points][:, :, None], Z_cols[base][:, :, None],
+                               np.moveaxis(z_cols[terms], 1, 2)], axis=2)  # (points, n, 2 + width)
+        vals = np.concatenate([np.ones((points.size, 1)), -np.ones((points.size, 1)), weights], axis=1)
+        rows.add(cols.reshape(points.size * n, 2 + width),
+                 np.repeat(vals, n, axis=0))
+        return rows.matrix()
+
+    def damping(self) -> np.ndarray:
+        """L² weights w_k on x, z, u (none on Z, which the constraints determine)."""
+        weights = np.zeros((self.nodes, self.width))
+        weights[:, : 2 * self.n + self.m] = self.f.weights[:, None]
+        return weights.ravel()
+
+    def hessian(self, mu: float, reduced: bool) -> sp.csc_matrix:
+        """λJᵀJ + μW, on the constant states' reduced columns (R) if `reduced` (and there are any)."""
+        J, lam = self.jacobian, self.penalty
+        JR, damping = ((J @ self.R).tocsr(), self.R.T @ self.damping()) if reduced and self.R is not None else (
+            J, self.damping())
+        return (lam * (JR.T @ JR) + mu * sp.diags(damping)).tocsc()
+
+    def hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
+        """The one-sided residuals of φ: rows √w_k·(ℓ_side + ∇ℓ_side·d) for every block,
+        side and node (h_b = max(0, max_side ℓ)), as a matrix and the values √w_k·ℓ (built
+        once per step: the active-set iteration, the QP and its polish all read them)."""
+        if self._hinge_rows is None:
+            self._hinge_rows = self._assemble_hinges()
+        return self._hinge_rows
+
+    def _assemble_hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
+        root_w = np.sqrt(self.f.weights)
+        y_cols, z_cols = self.y_cols(), self.z_cols()
+        rows = RowBlocks(self.size)  # exactly-zero coefficients left out (:mod:`.sparse_rows`)
+        values = []
+        for block in self.sides:
+            block_cols = np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1)
+            for ell, dell_dy, psi in block.sides:
+                rows.add(block_cols, root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
+                values.append(root_w * ell)
+        if not rows.rows:
+            return sp.csr_matrix((0, self.size)), np.zeros(0)
+        return rows.matrix(), np.concatenate(values)
+
+    def min_linear(self) -> np.ndarray:
+        """Σ_k w_k ∇b_p*·d_k: each cost min-group (concave) linearized at its active piece."""
+        if self._min_linear is None:
+            min_linear = np.zeros(self.size)
+            y_cols = self.y_cols()
+            for values, grads in self.min_groups:
+                pick = grads[np.arange(self.nodes), np.argmin(values, axis=1)]
+                np.add.at(min_linear, y_cols.ravel(), (self.f.weights[:, None] * pick).ravel())
+            self._min_linear = min_linear
+        return self._min_linear
+
+    def max_pieces(self, d: np.ndarray) -> list[np.ndarray]:
+        """Each cost max-group's pieces linearized at d: a_q + ∇a_q·d_k, (N, m) per group."""
+        dy = d[self.y_cols()]
+        return [piece_values + np.einsum("kqp,kp->kq", grads, dy) for piece_values, grads in self.max_groups]
+
+    def decrease(self, d: np.ndarray, predicted_sides: np.ndarray) -> float:
+        """I(ξ) minus the step model at d: (λ/2)(‖r + Jd‖² + Σ max(0, v + Ad)²) plus the cost's
+        max-groups at their linearized maximum and min-groups at their linearized active piece
+        (predicted_sides: v + Ad, the hinge rows at d)."""
+        w = self.f.weights
+        model = 0.5 * self.penalty * (np.sum((self.residual + self.jacobian @ d) ** 2)
+                                      + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
+        model += sum(float(w @ predicted.max(axis=1)) for predicted in self.max_pieces(d))
+        model += float(self.min_linear() @ d) + sum(float(w @ values.min(axis=1)) for values, _ in self.min_groups)
+        return float(self.value - model)
+
+    def slope(self, d: np.ndarray, gradient: np.ndarray) -> float:
+        """The objective's one-sided derivative along d: the smooth part (gradient: λJᵀr and the
+        min-groups' :meth:`min_linear`), the cost's δ-active max-pieces and the violated sides."""
+        w, dy = self.f.weights, d[self.y_cols()]
+        matrix, values = self.hinges()
+        slope = float(gradient @ d) + self.penalty * float(np.maximum(values, 0.0) @ (matrix @ d))
+        for piece_values, grads in self.max_groups:
+            active = piece_values >= piece_values.max(axis=1, keepdims=True) - self.delta
+            slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
+        return slope
