@@ -58,7 +58,7 @@ def test_a_left_limit_selection_is_the_point_befores_where_the_interval_ends_off
     assert np.array_equal(residual[others], natural[others])
     assert np.array_equal(jacobian[k, 0, : functional.args], np.zeros(functional.args))
     assert jacobian[k, 0, functional.args] == 1.0
-    assert functional.terms(xi).sigma == pytest.approx(0.5 * functional._integral(np.sum(residual**2, axis=1)))
+    assert functional.terms(xi).sigma == pytest.approx(0.5 * functional.values.integral(np.sum(residual**2, axis=1)))
 
 
 def test_gauss_newtons_rows_of_a_left_limit_are_its_linearization():

@@ -14,14 +14,20 @@ sign Sgn(s), s ∈ R^k (:class:`~qdframe.model.BallSwitch`, isotropic friction),
 selection vector λ ∈ B (the closed unit ball) per node, k columns, tied by the natural map
 of the second-order-cone complementarity, λ − P_B(λ + c·s) = 0: λ = s/|s| where s ≠ 0.
 
-One job per module, each mixed into :class:`Functional`:
+The functional is composed of parts, each in its own module with its state declared, that
+call each other only through public methods (:class:`Functional` builds them and keeps
+its outside surface: it delegates to them):
 
+* :mod:`.layout` — where each unknown sits in ξ's row (:class:`~.layout.Layout`,
+  Functional's base);
+* :mod:`.pieces` — the model's pieces at ψ, ℓ(ψ) = <z_b, ψ> − c(F_b, ψ) and ψ*, checked
+  (:class:`~.pieces.Pieces`, which keeps the ψ* memo);
 * :mod:`.terms` — the terms' values (paper (3.13)–(3.17)), the objective, the ray a line
-  search minimizes, the pointwise residuals;
+  search minimizes, the pointwise residuals (:class:`~.terms.Values`);
 * :mod:`.assembly` — the quasidifferential [A_k, B_k] (paper Section 4) for the paper's
-  direction;
-* :mod:`.jacobians` — residuals with generalized-Jacobian elements for gauss-newton;
-* :mod:`.pieces` — the model's pieces at ψ, ℓ(ψ) = <z_b, ψ> − c(F_b, ψ) and ψ*.
+  direction (:class:`~.assembly.Quasidifferentials`);
+* :mod:`.jacobians` — residuals with generalized-Jacobian elements for gauss-newton
+  (:class:`~.jacobians.Jacobians`).
 
 What depends on the scheme (the points, quadrature weights w_k, the cumulative integral
 Z = ∫_0^t z and its adjoint) comes from the grid, built from the scheme's own rule
@@ -30,16 +36,18 @@ Z = ∫_0^t z and its adjoint) comes from the grid, built from the scheme's own 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
 
 import numpy as np
 
 from ..errors import InputError, ModelOutputError
 from ..grid import Grid
-from ..model import InclusionModel, SetBlock, SignTerm
+from ..model import Cost, InclusionModel, SetBlock, Surface
+from ..quasidifferential import Quasidifferential
 from ..registry import plugin_code
 from .assembly import Quasidifferentials
 from .jacobians import DistanceSides, Jacobians
+from .layout import Layout, SelectionGroup
 from .pieces import Pieces
 from .terms import Residuals, Terms, Values
 
@@ -48,32 +56,20 @@ __all__ = ["SIGN_MODES", "DistanceSides", "Functional", "Residuals", "SelectionG
 SIGN_MODES = ("exact", "band")
 
 
-@dataclass(frozen=True)
-class SelectionGroup:
-    """One switch's selection: `width` columns of λ from `first` (1 for a scalar Sgn(s), k for a
-    vector sign's λ ∈ B ⊂ R^k), and the first sign term on it with its block."""
+class Functional(Layout):
+    """The discretized objective of a model on a grid: the layout of ξ (its base,
+    :class:`~.layout.Layout`) and four parts it owns, each job in its own module: `pieces`
+    (the model's pieces at ψ, :mod:`.pieces`), `values` (values, the ray and residuals:
+    :mod:`.terms`), `assembly` (the quasidifferential: :mod:`.assembly`) and `jacobians`
+    (residuals with Jacobian elements: :mod:`.jacobians`). Its methods delegate to them."""
 
-    first: int
-    width: int
-    block: int
-    term: SignTerm
-
-    @property
-    def columns(self) -> slice:
-        return slice(self.first, self.first + self.width)
-
-    @property
-    def names(self) -> list[str]:
-        if self.width == 1:
-            return [self.term.name]
-        base = self.term.ball.name  # type: ignore[union-attr]
-        return [f"{base}[{j}]" for j in range(self.width)]
-
-
-class Functional(Values, Quasidifferentials, Jacobians, Pieces):
-    """The discretized objective of a model on a grid: the layout of ξ here, each job in its
-    own module (values and the ray: :mod:`.terms`; the quasidifferential: :mod:`.assembly`;
-    residuals with Jacobian elements: :mod:`.jacobians`; the model's pieces at ψ: :mod:`.pieces`)."""
+    model: InclusionModel
+    grid: Grid
+    signs: str  # "exact" or "band"
+    pieces: Pieces
+    values: Values
+    assembly: Quasidifferentials
+    jacobians: Jacobians
 
     def __init__(
         self,
@@ -90,80 +86,135 @@ class Functional(Values, Quasidifferentials, Jacobians, Pieces):
             raise InputError("signs", " or ".join(f'"{mode}"' for mode in SIGN_MODES), signs)
         if not (isinstance(selection_scale, (int, float)) and np.isfinite(selection_scale) and selection_scale > 0):
             raise InputError("selection_scale", "a positive finite number", selection_scale)
+        super().__init__(model, signs, grid.nodes)
         self.model = model
         self.grid = grid
         self.signs = signs
-        self.selection_scale = float(selection_scale)
-        self.n = model.n_states
-        self.m = model.n_controls
-        with plugin_code(model, "blocks()"):
-            self.blocks: tuple[SetBlock, ...] = tuple(model.blocks())
-        # the sign terms in block order, (block index, term), and each one's selection column:
-        # terms with the same `switch` callable share one λ (one surface, one Filippov selection);
-        # a vector sign's BallSwitch has one selection vector λ ∈ B, k consecutive columns, and
-        # each of its terms the column of its component
-        self.sign_terms = [] if signs == "band" else [
-            (b, term) for b, block in enumerate(self.blocks) for term in block.signs
-        ]
-        first: dict[int, int] = {}
-        self.selection_groups: list[SelectionGroup] = []
-        self.sign_columns = []
-        for b, term in self.sign_terms:
-            if id(term.switch) not in first:
-                width = term.ball.dim if term.ball is not None else 1
-                first[id(term.switch)] = sum(group.width for group in self.selection_groups)
-                self.selection_groups.append(SelectionGroup(first[id(term.switch)], width, b, term))
-            self.sign_columns.append(first[id(term.switch)] + (term.component or 0))
-        # per column: the (block, term) of its switch (a vector sign's first term, for each of its
-        # columns) and its name (a vector sign's columns: name[0], name[1], …)
-        self.selection_terms = [(group.block, group.term) for group in self.selection_groups for _ in range(group.width)]
-        self.selection_names = [name for group in self.selection_groups for name in group.names]
-        self.balls = [(group.first, group.width) for group in self.selection_groups if group.width > 1]
-        self.p = len(self.selection_terms)
-        self.dim = 2 * self.n + self.m + self.p
-        self.args = self.n + self.m  # width of y = (x, u), the pieces' argument
-        self.width = self.args + self.p  # width of the sides' gradients: (x, u, λ)
         with plugin_code(model, "surface()"):
-            self.surface = model.surface()
+            surface = model.surface()
         with plugin_code(model, "cost()"):
-            self.cost = model.cost()
-        self.penalty = float(self.cost.weight) if self.cost is not None else 1.0
-        self.end = np.asarray(model.end_indices, dtype=int)  # J: x_j(T) = xT_j
-        self.periodic = np.asarray(model.periodic, dtype=int)  # P: x_i(T) = x_i(0)
-        self.start_given = np.isfinite(model.x0)  # x_i(0) = x0_i given; NaN: free
-        self.psi_samples = psi_samples
-        self._psi_memo: dict[int, list[tuple[bytes, np.ndarray]]] = {}  # per S_k block: recent (inputs, ψ*)
-        self._values_checked: set[int] = set()  # min-groups whose `values` agreed with their pieces once
-        self.free = np.ones((grid.nodes, self.dim), dtype=bool)
-        self.free[0, : self.n] = ~self.start_given  # a given x_i(t_0) = x0_i is not an unknown
-        self.resolved = dict(model.resolved)  # z_i ≡ x_j: z_i is not an unknown
-        for i in self.resolved:
-            self.free[:, self.n + i] = False
+            cost = model.cost()
+        self.pieces = Pieces(model, grid, self.n, self.args, self.width, psi_samples)
+        self.values = Values(
+            layout=self, grid=grid, pieces=self.pieces, surface=surface, cost=cost,
+            penalty=float(cost.weight) if cost is not None else 1.0,
+            end=np.asarray(model.end_indices, dtype=int), periodic=np.asarray(model.periodic, dtype=int),
+            end_values=model.end_values, selection_scale=float(selection_scale))
+        self.assembly = Quasidifferentials(layout=self, grid=grid, pieces=self.pieces, values=self.values)
+        self.jacobians = Jacobians(layout=self, pieces=self.pieces, cost=cost)
 
     @property
     def weights(self) -> np.ndarray:
         return self.grid.weights
 
-    def split(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(x, z), each (N, n); a resolved state's z_i is x_j."""
-        x, z = xi[:, : self.n], xi[:, self.n : 2 * self.n]
-        if self.resolved:
-            z = z.copy()
-            for i, j in self.resolved.items():
-                z[:, i] = x[:, j]
-        return x, z
+    # the problem's data, kept by the parts that use them
+    @property
+    def surface(self) -> Surface | None:
+        return self.values.surface
 
-    def controls(self, xi: np.ndarray) -> np.ndarray:
-        """u, shape (N, m)."""
-        return xi[:, 2 * self.n : 2 * self.n + self.m]
+    @property
+    def cost(self) -> Cost | None:
+        return self.values.cost
 
-    def selections(self, xi: np.ndarray) -> np.ndarray:
-        """λ, shape (N, p): the selection of each sign term's Sgn(s) at every node."""
-        return xi[:, 2 * self.n + self.m :]
+    @property
+    def penalty(self) -> float:
+        """λ of the objective ∫cost + λ·I (1 without a cost)."""
+        return self.values.penalty
 
-    def arguments(self, xi: np.ndarray) -> np.ndarray:
-        """y = (x, u), the pieces' argument, shape (N, n + m)."""
-        return xi[:, : self.n] if self.m == 0 else np.concatenate([xi[:, : self.n], self.controls(xi)], axis=1)
+    @property
+    def end(self) -> np.ndarray:
+        """J: x_j(T) = xT_j."""
+        return self.values.end
+
+    @property
+    def periodic(self) -> np.ndarray:
+        """P: x_i(T) = x_i(0)."""
+        return self.values.periodic
+
+    @property
+    def selection_scale(self) -> float:
+        """c of σ's natural map."""
+        return self.values.selection_scale
+
+    @property
+    def psi_samples(self) -> int:
+        return self.pieces.psi_samples
+
+    # the parts' jobs, as Functional's methods
+    def terms(self, xi: np.ndarray) -> Terms:
+        """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
+        return self.values.terms(xi)
+
+    def objective(self, xi: np.ndarray) -> float:
+        return self.terms(xi).objective
+
+    def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
+        """γ ↦ the objective at ξ + γG, what a line search minimizes (:meth:`.terms.Values.ray`)."""
+        return self.values.ray(xi, direction)
+
+    def residuals(self, xi: np.ndarray) -> Residuals:
+        return self.values.residuals(xi)
+
+    def boundary_error(self, xi: np.ndarray) -> float:
+        """max |x_j(T) − xT_j| over J and |x_i(T) − x_i(0)| over the periodic P, read from x."""
+        return self.values.boundary_error(xi)
+
+    def consistency(self, xi: np.ndarray) -> np.ndarray:
+        """x − x0 − ∫_0^t z at every node, (N, n)."""
+        return self.values.consistency(*self.split(xi))
+
+    def end_residual(self, xi: np.ndarray) -> np.ndarray:
+        """x_j(0) + ∫_0^T z_j − xT_j for j ∈ J, then ∫_0^T z_i (= x_i(T) − x_i(0)) for i ∈ P."""
+        return self.values.end_residual(*self.split(xi))
+
+    def surface_values(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """e(x) (N, o) and ∂e/∂x (N, o, n); requires a surface."""
+        return self.values.surface_at(self.split(xi)[0])
+
+    def selection_residual(self, xi: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """σ's natural map r = λ − P(λ + c·s(y)) (N, p) and a Jacobian element (:meth:`.terms.Values.selection_residual`)."""
+        return self.values.selection_residual(xi, scale)
+
+    def left_limits(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The left-limit selections (:meth:`.terms.Values.left_limits`)."""
+        return self.values.left_limits(lam)
+
+    def project(self, values: np.ndarray) -> np.ndarray:
+        """P of every selection's columns (N, p): the clip to [−1, 1], a vector sign's onto B."""
+        return self.values.project(values)
+
+    def switch_values(self, y: np.ndarray, gradients: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """s (N, p) of every selection column and, with `gradients`, ∇s (N, p, n + m), checked."""
+        return self.values.switch_values(y, gradients)
+
+    def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
+        """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
+        return self.values.set_bounds(xi)
+
+    def quasidifferential(self, xi: np.ndarray, delta: float) -> Quasidifferential:
+        """[A_k, B_k] for every node, δ-active pieces, L² metric (paper Section 4)."""
+        return self.assembly.quasidifferential(xi, delta)
+
+    def distance_sides(self, xi: np.ndarray) -> list[DistanceSides]:
+        """Every block's sides: ℓ and a generalized-Jacobian element each (:meth:`.jacobians.Jacobians.distance_sides`)."""
+        return self.jacobians.distance_sides(xi)
+
+    def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The cost's max-groups and min-groups: lists of (values (N, m), gradients (N, m, n + m))."""
+        return self.jacobians.cost_pieces(xi)
+
+    # the names qdframe's diagnosis, plotting, simulate, start, estimates and authoring.check call
+    def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray, maxes=None, selections=None):
+        return self.pieces.side(block, y, z, psi, maxes, selections)
+
+    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None):
+        return self.pieces.sides_1d(block, y, z, selections)
+
+    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray, float] | None]:
+        return self.block_selections(b, lam)
+
+    def _amplitude_values(self, block: SetBlock, term, y: np.ndarray) -> np.ndarray:
+        return self.pieces.amplitude_values(block, term, y)
 
     def pack(self, x: np.ndarray, z: np.ndarray, u: np.ndarray | None = None,
              selections: np.ndarray | None = None) -> np.ndarray:

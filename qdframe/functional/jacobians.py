@@ -12,6 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model import Cost
+from .layout import Layout
+from .pieces import Pieces
+
 
 @dataclass(frozen=True)
 class DistanceSides:
@@ -30,38 +34,45 @@ class DistanceSides:
         return np.maximum(0.0, np.max([ell for ell, _, _ in self.sides], axis=0))
 
 
+@dataclass(eq=False)
 class Jacobians:
-    """Residuals and Jacobian elements at ξ (mixed into :class:`~qdframe.functional.Functional`)."""
+    """Residuals and Jacobian elements at ξ: one of the parts of
+    :class:`~qdframe.functional.Functional`, the model's pieces evaluated by its `pieces`."""
+
+    layout: Layout
+    pieces: Pieces
+    cost: Cost | None
 
     def distance_sides(self, xi: np.ndarray) -> list[DistanceSides]:
         """For every block, h_b = max(0, max_side ℓ_side) with each side's signed ℓ and
         one element of its generalized Jacobian (:meth:`_Side.gradient`). One-coordinate
         blocks have two sides, ψ = +1 and ψ = −1 (the interval's ends); S_k blocks have
         one, ψ = ψ*."""
-        y, z, lam = self.arguments(xi), self.split(xi)[1], self.selections(xi)
+        layout, pieces = self.layout, self.pieces
+        y, z, lam = layout.arguments(xi), layout.split(xi)[1], layout.selections(xi)
         out = []
-        for b, block in enumerate(self.blocks):
+        for b, block in enumerate(layout.blocks):
             if block.size != 1:
-                out.append(DistanceSides(block.coords, [self._side_terms(self._state_sphere(block, y, z))]))
+                out.append(DistanceSides(block.coords, [self._side_terms(pieces.state_sphere(block, y, z))]))
                 continue
-            maxes = [self._max_group(block, group, y) for group in block.max_groups]
-            point = (not block.min_groups and (self.p or not block.signs)
+            maxes = [pieces.max_group(block, group, y) for group in block.max_groups]
+            point = (not block.min_groups and (layout.p or not block.signs)
                      and all(f.shape[1] == 1 for f, _ in maxes))
-            selections = self._block_selections(b, lam)
+            selections = layout.block_selections(b, lam)
             ones = np.ones((y.shape[0], 1))
-            sides = [self._side_terms(self._side(block, y, z, psi, maxes, selections))
+            sides = [self._side_terms(pieces.side(block, y, z, psi, maxes, selections))
                      for psi in ((ones,) if point else (ones, -ones))]  # a point: the ψ = +1 side alone
             out.append(DistanceSides(block.coords, sides, point))
         return out
 
     def _side_terms(self, side) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(ℓ, ∂ℓ/∂y, ψ) of a side, the side's pieces let go."""
-        return side.ell, side.gradient(self.width), side.psi
+        return side.ell, side.gradient(self.layout.width), side.psi
 
     def cost_pieces(self, xi: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The cost's max-groups and min-groups: lists of (values (N, m), gradients (N, m, n + m))."""
-        y = self.arguments(xi)
+        y = self.layout.arguments(xi)
         return (
-            [self._scalar_pieces(fn, y, "cost max-group") for fn in self.cost.max_groups],  # type: ignore[union-attr]
-            [self._scalar_pieces(fn, y, "cost min-group") for fn in self.cost.min_groups],  # type: ignore[union-attr]
+            [self.pieces.scalar_pieces(fn, y, "cost max-group") for fn in self.cost.max_groups],  # type: ignore[union-attr]
+            [self.pieces.scalar_pieces(fn, y, "cost min-group") for fn in self.cost.min_groups],  # type: ignore[union-attr]
         )

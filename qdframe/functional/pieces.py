@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ModelOutputError
-from ..model import SetBlock
+from ..grid import Grid
+from ..model import InclusionModel, SetBlock
 from .psi import maximize_on_sphere, sphere_samples
 
 FACE_TOL = 1e-7  # a max-group's vertex is on the face ψ* exposes: <f_q, ψ*> within this (relative) of the maximum
@@ -61,7 +62,7 @@ class _Side:
 
     `faces`: for a block of k ≥ 2 coordinates at ψ*, (nodes, [λ (nodes, m) per max-group])
     where a max-group's face exposed by ψ* has several vertices and the nearest point's
-    decomposition over the faces is unique (:meth:`Pieces._faces`): there h is smooth in y
+    decomposition over the faces is unique (:func:`_faces`): there h is smooth in y
     and its gradient takes each group's vertices weighted by λ, not one active vertex."""
 
     psi: np.ndarray
@@ -115,9 +116,28 @@ class _Side:
 
 
 class Pieces:
-    """Evaluates and checks a model's pieces (mixed into :class:`~qdframe.functional.Functional`)."""
+    """Evaluates and checks a model's pieces at the nodes: each takes the block it evaluates
+    and y = (x, u) (N, n + m), z (N, n) and, for the sign terms with selections, their
+    (column, sense·λ, sense) (:meth:`~qdframe.functional.layout.Layout.block_selections`)."""
 
-    def _check(self, label: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
+    model: InclusionModel  # named in the messages of a piece that fails its check
+    grid: Grid  # the node times in those messages
+    n: int  # states (the state printed where `values` disagrees with `pieces`)
+    args: int  # n + m, the width of y = (x, u)
+    width: int  # n + m + p, the width of a side's gradient in (x, u, λ)
+    psi_samples: int  # the samples of S_k of ψ*'s search
+
+    def __init__(self, model: InclusionModel, grid: Grid, n: int, args: int, width: int, psi_samples: int) -> None:
+        self.model, self.grid, self.n, self.args, self.width = model, grid, n, args, width
+        self.psi_samples = psi_samples
+        self._psi_memo: dict[int, list[tuple[bytes, np.ndarray]]] = {}  # per S_k block: recent (inputs, ψ*)
+        self._values_checked: set[int] = set()  # min-groups whose `values` agreed with their pieces once
+
+    def state(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> _Side:
+        """`block` at its ψ*: :meth:`state_1d` or :meth:`state_sphere`."""
+        return self.state_1d(block, y, z, selections) if block.size == 1 else self.state_sphere(block, y, z)
+
+    def check(self, label: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
         array = np.asarray(array)
         if array.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, array.shape)):
             expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
@@ -135,24 +155,24 @@ class Pieces:
                 label=label, node=node if per_node else None, nonfinite=True,
             )
 
-    def _scalar_pieces(self, fn, x: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+    def scalar_pieces(self, fn, x: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
         values, grads = fn(x)
-        self._check(label, values, (x.shape[0], None))
-        self._check(f"{label} gradient", grads, (x.shape[0], values.shape[1], self.args))
+        self.check(label, values, (x.shape[0], None))
+        self.check(f"{label} gradient", grads, (x.shape[0], values.shape[1], self.args))
         return values, grads
 
-    def _max_group(self, block: SetBlock, group, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def max_group(self, block: SetBlock, group, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         f, jac = group.pieces(x)
         label = f"block {block.name or block.coords} max-group {group.name!r}"
-        self._check(label, f, (x.shape[0], None, block.size))
-        self._check(f"{label} Jacobian", jac, (x.shape[0], f.shape[1], block.size, self.args))
+        self.check(label, f, (x.shape[0], None, block.size))
+        self.check(f"{label} Jacobian", jac, (x.shape[0], f.shape[1], block.size, self.args))
         return f, jac
 
-    def _min_group(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def min_group(self, block: SetBlock, group, x: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         g, grad = group.pieces(x, psi)
         label = f"block {block.name or block.coords} min-group {group.name!r}"
-        self._check(label, g, (x.shape[0], None))
-        self._check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
+        self.check(label, g, (x.shape[0], None))
+        self.check(f"{label} gradient", grad, (x.shape[0], g.shape[1], self.args))
         return g, grad
 
     def _check_values(self, block: SetBlock, y: np.ndarray) -> None:
@@ -187,15 +207,15 @@ class Pieces:
                     f"the values of `pieces` (qdframe check-model finds such errors)", label=f"{label} values", node=node)
             self._values_checked.add(id(group))
 
-    def _switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def switch(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """s (N,) and ∇s (N, n + m) of a sign term of `block`, checked; a vector sign's
         (:class:`~qdframe.model.BallSwitch`, k components) s (N, k) and ∇s (N, k, n + m)."""
         label = f"block {block.name or block.coords} sign term {term.name!r}"
         s, ds = term.switch(y)
         ball = term.ball
-        self._check(f"{label} switch", s, (y.shape[0],) if ball is None else (y.shape[0], ball.dim))
-        self._check(f"{label} switch gradient", ds,
-                    (y.shape[0], self.args) if ball is None else (y.shape[0], ball.dim, self.args))
+        self.check(f"{label} switch", s, (y.shape[0],) if ball is None else (y.shape[0], ball.dim))
+        self.check(f"{label} switch gradient", ds,
+                   (y.shape[0], self.args) if ball is None else (y.shape[0], ball.dim, self.args))
         return s, ds
 
     def _amplitude(self, block: SetBlock, term, y: np.ndarray) -> tuple[np.ndarray, list[_Piece]]:
@@ -203,16 +223,16 @@ class Pieces:
         if isinstance(term.amplitude, (int, float)):
             return np.full(y.shape[0], float(term.amplitude)), []
         label = f"block {block.name or block.coords} sign term {term.name!r}"
-        groups = [_Piece(*self._scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
+        groups = [_Piece(*self.scalar_pieces(fn, y, f"{label} amplitude")) for fn in term.amplitude]
         return sum(_reduce_last(np.maximum, piece.values) for piece in groups), groups
 
-    def _amplitude_values(self, block: SetBlock, term, y: np.ndarray) -> np.ndarray:
+    def amplitude_values(self, block: SetBlock, term, y: np.ndarray) -> np.ndarray:
         """:meth:`_amplitude`'s a(y) alone: each group's gradients let go as soon as it is
         evaluated (an l1 norm of six states is six groups of (N, 2, n + m) gradients)."""
         if isinstance(term.amplitude, (int, float)):
             return np.full(y.shape[0], float(term.amplitude))
         label = f"block {block.name or block.coords} sign term {term.name!r}"
-        return sum(_reduce_last(np.maximum, self._scalar_pieces(fn, y, f"{label} amplitude")[0]) for fn in term.amplitude)
+        return sum(_reduce_last(np.maximum, self.scalar_pieces(fn, y, f"{label} amplitude")[0]) for fn in term.amplitude)
 
     def _sign_part(self, block: SetBlock, term, y: np.ndarray, psi: np.ndarray,
                    selection: tuple[int, np.ndarray] | None = None) -> _SignPart:
@@ -224,7 +244,7 @@ class Pieces:
             column, signed, sense = selection
             kappa_grad[:, column] = psi * sense
             return _SignPart(psi * signed, kappa_grad, amplitude, groups)
-        s, ds = self._switch(block, term, y)
+        s, ds = self.switch(block, term, y)
         if term.ball is not None:
             kappa, slope = _ball_band_kappa(term.band, s, term.component, psi * term.sense)
             if slope is not None:
@@ -235,23 +255,15 @@ class Pieces:
             kappa_grad[:, : self.args] = slope[:, None] * ds
         return _SignPart(kappa, kappa_grad, amplitude, groups)
 
-    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray, float] | None]:
-        """For each sign term of block b: (its selection's column in y = (x, u, λ), sense·λ,
-        its sense), or None (band). Terms on one switch share the column (model.SignTerm)."""
-        if not self.p:
-            return [None] * len(self.blocks[b].signs)
-        return [(self.args + k, term.sense * lam[:, k], term.sense)
-                for k, (block, term) in zip(self.sign_columns, self.sign_terms) if block == b]
-
-    def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,
-              maxes: list[tuple[np.ndarray, np.ndarray]] | None = None,
-              selections: list | None = None) -> _Side:
+    def side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray,
+             maxes: list[tuple[np.ndarray, np.ndarray]] | None = None,
+             selections: list | None = None) -> _Side:
         """All groups of `block` at ψ (N, k); `maxes` reuses evaluated max-groups."""
         if maxes is None:
-            maxes = [self._max_group(block, group, y) for group in block.max_groups]
+            maxes = [self.max_group(block, group, y) for group in block.max_groups]
         ell = np.einsum("nk,nk->n", z[:, list(block.coords)], psi)
         max_parts = [_Piece(np.einsum("nqk,nk->nq", f, psi), np.einsum("nqkd,nk->nqd", jac, psi)) for f, jac in maxes]
-        min_parts = [_Piece(*self._min_group(block, group, y, psi)) for group in block.min_groups]
+        min_parts = [_Piece(*self.min_group(block, group, y, psi)) for group in block.min_groups]
         selections = selections or [None] * len(block.signs)
         sign_parts = [self._sign_part(block, term, y, psi[:, 0], sel) for term, sel in zip(block.signs, selections)]
         for part in max_parts:
@@ -262,18 +274,18 @@ class Pieces:
             ell -= part.kappa * part.amplitude
         return _Side(psi, ell, max_parts, min_parts, sign_parts)
 
-    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> list[_Side]:
+    def sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> list[_Side]:
         """A one-coordinate block at ψ = +1 and ψ = −1."""
-        maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        maxes = [self.max_group(block, group, y) for group in block.max_groups]
         ones = np.ones((y.shape[0], 1))
-        return [self._side(block, y, z, ones, maxes, selections), self._side(block, y, z, -ones, maxes, selections)]
+        return [self.side(block, y, z, ones, maxes, selections), self.side(block, y, z, -ones, maxes, selections)]
 
-    def _state_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> _Side:
+    def state_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> _Side:
         """ψ ∈ {−1, +1}: ψ* in closed form (the nearer violated end of the interval)."""
-        plus, minus = self._sides_1d(block, y, z, selections)
+        plus, minus = self.sides_1d(block, y, z, selections)
         return _Side.choose(plus.ell >= minus.ell, plus, minus)
 
-    def _state_sphere(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:
+    def state_sphere(self, block: SetBlock, y: np.ndarray, z: np.ndarray) -> _Side:
         """ψ ∈ S_k: ψ* searched numerically, vectorized over nodes (Remark 5.1), once per
         iterate: the last few ψ* are kept per block under a 256-bit BLAKE2b digest of their
         inputs' bytes (y, z_b and the sample count), so a repeated iterate reuses its ψ* and
@@ -282,7 +294,7 @@ class Pieces:
         iterate's search starts from the ψ* used last (:mod:`.psi`'s warm start)."""
         nodes, k = y.shape[0], block.size
         zb = z[:, list(block.coords)]
-        maxes = [self._max_group(block, group, y) for group in block.max_groups]
+        maxes = [self.max_group(block, group, y) for group in block.max_groups]
         digest = hashlib.blake2b(np.int64([self.psi_samples, *y.shape, *zb.shape]).tobytes(), digest_size=32)
         digest.update(np.ascontiguousarray(y, dtype=float))
         digest.update(np.ascontiguousarray(zb, dtype=float))
@@ -318,94 +330,30 @@ class Pieces:
             psi = maximize_on_sphere(ell, nodes, k, samples=self.psi_samples, start=memo[0][1] if memo else None)
             memo.insert(0, (key, psi))
             del memo[4:]
-        side = self._side(block, y, z, psi.copy(), maxes)
-        side.faces = self._faces(block, y, zb, side, maxes)
+        side = self.side(block, y, z, psi.copy(), maxes)
+        side.faces = _faces(block, y, zb, side, maxes)
         return side
 
-    def _faces(self, block: SetBlock, y: np.ndarray, zb: np.ndarray, side: _Side,
-               maxes: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, list[np.ndarray]] | None:
-        """Where a max-group's face exposed by ψ* has several vertices (values within
-        FACE_TOL of the group's maximum), the weights λ of the nearest point's decomposition.
-
-        h = max_ψ ℓ(y, ψ) is a max over ψ of a min over each group's vertices, and ψ* moves
-        with y: formula (4.5), co{−ψ*ᵀ∂f_q : q active}, is then not h's superdifferential.
-        By Danskin's theorem applied to h = min over λ_j ∈ simplices of ‖z − Σ_j Σ_q λ_jq f_jq
-        − (the min-groups' support points)‖, h's superdifferential is co{−ψ*ᵀ Σ λ_jq ∂f_jq} over
-        the minimizing λ: one point where λ is unique, which it is unless vertices of the
-        faces are affinely dependent (duplicates, collinear, parallel faces of two groups).
-        λ solves the tangential condition of ψ*'s optimality, P(z − Σ λ_jq f_jq − Σ ∇_ψ g) = 0
-        with P = I − ψ*ψ*ᵀ, and Σ_q λ_jq = 1 per group (∇_ψ g of each min-group by central
-        differences at ψ*). Nodes where λ is not unique keep (4.5)'s set (a superset of the
-        true one). None where no node has such a face."""
-        if not maxes or block.signs:
-            return None
-        psi = side.psi
-        actives = []
-        for part in side.max_parts:
-            top = part.values.max(axis=1, keepdims=True)
-            spread = top - part.values.min(axis=1, keepdims=True)
-            actives.append(part.values >= top - FACE_TOL * (1.0 + np.abs(top) + spread))
-        at = np.flatnonzero(np.logical_or.reduce([a.sum(axis=1) >= 2 for a in actives]) & (side.ell > 0))
-        if at.size == 0:
-            return None
-        k = psi.shape[1]
-        project = np.eye(k) - np.einsum("ni,nj->nij", psi[at], psi[at])  # P per node
-        target = np.einsum("nij,nj->ni", project, zb[at])
-        for group in block.min_groups:  # −P∇_ψ min_p g_p, by central differences along P e_i
-            values = group.values if group.values is not None else (lambda x, q, g=group: g.pieces(x, q)[0])
-            step = FACE_STEP * project  # (n, k, k): row i is the step along P e_i
-            y_rep = np.repeat(y[at], k, axis=0)
-            ahead = _reduce_last(np.minimum, np.asarray(values(y_rep, (psi[at, None, :] + step).reshape(-1, k))))
-            behind = _reduce_last(np.minimum, np.asarray(values(y_rep, (psi[at, None, :] - step).reshape(-1, k))))
-            target -= ((ahead - behind) / (2.0 * FACE_STEP)).reshape(at.size, k)
-        columns = [np.where(a[at, :, None], f[at], 0.0) for a, (f, _) in zip(actives, maxes)]  # (n, m_j, k)
-        tangential = np.concatenate([np.einsum("nij,nqj->niq", project, c) for c in columns], axis=2)
-        sums = [np.zeros((at.size, len(columns), c.shape[1])) for c in columns]
-        for j, (a, simplex) in enumerate(zip(actives, sums)):
-            simplex[:, j, :] = a[at]
-        system = np.concatenate([tangential, np.concatenate(sums, axis=2)], axis=1)  # (n, k + G, Σm)
-        rhs = np.concatenate([target, np.ones((at.size, len(columns)))], axis=1)
-        u, sigma, vt = np.linalg.svd(system, full_matrices=False)
-        rank = (sigma > 1e-10 * sigma[:, :1]).sum(axis=1)
-        unique = rank == sum(a[at].sum(axis=1) for a in actives)  # one λ: as many independent rows as active vertices
-        inverse = np.where(sigma > 1e-10 * sigma[:, :1], 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
-        lam = np.einsum("nri,nr->ni", vt, inverse * np.einsum("njr,nj->nr", u, rhs))  # the least-squares λ
-        at, lam = at[unique], lam[unique]
-        if at.size == 0:
-            return None
-        weights, start = [], 0
-        for a in actives:
-            weights.append(lam[:, start : start + a.shape[1]])
-            start += a.shape[1]
-        return at, weights
-
-    def _block_states(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[_Side]:
-        """Every block at its ψ*."""
-        return [
-            self._state_1d(block, y, z, self._block_selections(b, lam)) if block.size == 1
-            else self._state_sphere(block, y, z)
-            for b, block in enumerate(self.blocks)
-        ]
-
-    def _interval_distance(self, b: int, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    def interval_distance(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None) -> np.ndarray:
         """h_b = max(0, ℓ(+1), ℓ(−1)) of a one-coordinate block from the pieces' values alone:
-        :meth:`_state_1d`'s h, bit for bit, with the pieces that do not depend on ψ evaluated
+        :meth:`state_1d`'s h, bit for bit, with the pieces that do not depend on ψ evaluated
         once, in its order (a NaN names the same piece)."""
-        block, nodes = self.blocks[b], y.shape[0]
+        nodes = y.shape[0]
+        selections = selections or [None] * len(block.signs)
 
         def minima(psi: float) -> list[np.ndarray]:
-            return [_reduce_last(np.minimum, self._min_group(block, group, y, np.full((nodes, 1), psi))[0])
+            return [_reduce_last(np.minimum, self.min_group(block, group, y, np.full((nodes, 1), psi))[0])
                     for group in block.min_groups]
 
-        maxes = [self._max_group(block, group, y)[0][:, :, 0] for group in block.max_groups]
+        maxes = [self.max_group(block, group, y)[0][:, :, 0] for group in block.max_groups]
         upper = minima(1.0)
-        signs = [(term, selection, self._amplitude_values(block, term, y),
-                  None if selection is not None else self._switch(block, term, y)[0])
-                 for term, selection in zip(block.signs, self._block_selections(b, lam))]
+        signs = [(term, selection, self.amplitude_values(block, term, y),
+                  None if selection is not None else self.switch(block, term, y)[0])
+                 for term, selection in zip(block.signs, selections)]
         lower = minima(-1.0)
 
         def ell(psi: float, mins: list[np.ndarray]) -> np.ndarray:
-            """ℓ(ψ) = zψ − c(F_b, ψ), as :meth:`_side` sums it."""
+            """ℓ(ψ) = zψ − c(F_b, ψ), as :meth:`side` sums it."""
             value = z[:, block.coords[0]] * psi
             for f in maxes:
                 value -= _reduce_last(np.maximum, f * psi)
@@ -419,12 +367,63 @@ class Pieces:
 
         return np.maximum(0.0, np.maximum(ell(1.0, upper), ell(-1.0, lower)))
 
-    def _embed(self, grads: np.ndarray) -> np.ndarray:
-        """Gradients in y = (x, u) or (x, u, λ) placed in the x-, u- (and λ-) slots of ξ's row."""
-        out = np.zeros(grads.shape[:-1] + (self.dim,))
-        out[..., : self.n] = grads[..., : self.n]
-        out[..., 2 * self.n : self.n + grads.shape[-1]] = grads[..., self.n :]
-        return out
+
+def _faces(block: SetBlock, y: np.ndarray, zb: np.ndarray, side: _Side,
+           maxes: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, list[np.ndarray]] | None:
+    """Where a max-group's face exposed by ψ* has several vertices (values within
+    FACE_TOL of the group's maximum), the weights λ of the nearest point's decomposition.
+
+    h = max_ψ ℓ(y, ψ) is a max over ψ of a min over each group's vertices, and ψ* moves
+    with y: formula (4.5), co{−ψ*ᵀ∂f_q : q active}, is then not h's superdifferential.
+    By Danskin's theorem applied to h = min over λ_j ∈ simplices of ‖z − Σ_j Σ_q λ_jq f_jq
+    − (the min-groups' support points)‖, h's superdifferential is co{−ψ*ᵀ Σ λ_jq ∂f_jq} over
+    the minimizing λ: one point where λ is unique, which it is unless vertices of the
+    faces are affinely dependent (duplicates, collinear, parallel faces of two groups).
+    λ solves the tangential condition of ψ*'s optimality, P(z − Σ λ_jq f_jq − Σ ∇_ψ g) = 0
+    with P = I − ψ*ψ*ᵀ, and Σ_q λ_jq = 1 per group (∇_ψ g of each min-group by central
+    differences at ψ*). Nodes where λ is not unique keep (4.5)'s set (a superset of the
+    true one). None where no node has such a face."""
+    if not maxes or block.signs:
+        return None
+    psi = side.psi
+    actives = []
+    for part in side.max_parts:
+        top = part.values.max(axis=1, keepdims=True)
+        spread = top - part.values.min(axis=1, keepdims=True)
+        actives.append(part.values >= top - FACE_TOL * (1.0 + np.abs(top) + spread))
+    at = np.flatnonzero(np.logical_or.reduce([a.sum(axis=1) >= 2 for a in actives]) & (side.ell > 0))
+    if at.size == 0:
+        return None
+    k = psi.shape[1]
+    project = np.eye(k) - np.einsum("ni,nj->nij", psi[at], psi[at])  # P per node
+    target = np.einsum("nij,nj->ni", project, zb[at])
+    for group in block.min_groups:  # −P∇_ψ min_p g_p, by central differences along P e_i
+        values = group.values if group.values is not None else (lambda x, q, g=group: g.pieces(x, q)[0])
+        step = FACE_STEP * project  # (n, k, k): row i is the step along P e_i
+        y_rep = np.repeat(y[at], k, axis=0)
+        ahead = _reduce_last(np.minimum, np.asarray(values(y_rep, (psi[at, None, :] + step).reshape(-1, k))))
+        behind = _reduce_last(np.minimum, np.asarray(values(y_rep, (psi[at, None, :] - step).reshape(-1, k))))
+        target -= ((ahead - behind) / (2.0 * FACE_STEP)).reshape(at.size, k)
+    columns = [np.where(a[at, :, None], f[at], 0.0) for a, (f, _) in zip(actives, maxes)]  # (n, m_j, k)
+    tangential = np.concatenate([np.einsum("nij,nqj->niq", project, c) for c in columns], axis=2)
+    sums = [np.zeros((at.size, len(columns), c.shape[1])) for c in columns]
+    for j, (a, simplex) in enumerate(zip(actives, sums)):
+        simplex[:, j, :] = a[at]
+    system = np.concatenate([tangential, np.concatenate(sums, axis=2)], axis=1)  # (n, k + G, Σm)
+    rhs = np.concatenate([target, np.ones((at.size, len(columns)))], axis=1)
+    u, sigma, vt = np.linalg.svd(system, full_matrices=False)
+    rank = (sigma > 1e-10 * sigma[:, :1]).sum(axis=1)
+    unique = rank == sum(a[at].sum(axis=1) for a in actives)  # one λ: as many independent rows as active vertices
+    inverse = np.where(sigma > 1e-10 * sigma[:, :1], 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
+    lam = np.einsum("nri,nr->ni", vt, inverse * np.einsum("njr,nj->nr", u, rhs))  # the least-squares λ
+    at, lam = at[unique], lam[unique]
+    if at.size == 0:
+        return None
+    weights, start = [], 0
+    for a in actives:
+        weights.append(lam[:, start : start + a.shape[1]])
+        start += a.shape[1]
+    return at, weights
 
 
 def _reduce_last(ufunc: np.ufunc, values: np.ndarray) -> np.ndarray:

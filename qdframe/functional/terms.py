@@ -19,7 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .pieces import _reduce_last
+from ..grid import Grid
+from ..model import Cost, Surface
+from .layout import Layout
+from .pieces import Pieces, _reduce_last
 
 SATURATED = 1e-6  # |λ| ≥ 1 − this: a selection at an end of its set, off its surface (as qdframe.switches)
 
@@ -49,21 +52,31 @@ class Residuals:
     selection_residual: float | None  # max |λ − clip(λ + s, −1, 1)|: λ ∈ Sgn(s) to this (None: no selections)
 
 
+@dataclass(eq=False)
 class Values:
-    """The terms' values at ξ (mixed into :class:`~qdframe.functional.Functional`)."""
+    """The terms' values at ξ, the ray and the pointwise residuals: one of the parts of
+    :class:`~qdframe.functional.Functional`, the model's pieces evaluated by its `pieces`."""
+
+    layout: Layout
+    grid: Grid
+    pieces: Pieces
+    surface: Surface | None  # e(x) = 0 of ω
+    cost: Cost | None
+    penalty: float  # λ of the objective ∫cost + λ·I (1 without a cost)
+    end: np.ndarray  # J: x_j(T) = xT_j
+    periodic: np.ndarray  # P: x_i(T) = x_i(0)
+    end_values: np.ndarray  # xT_j, j ∈ J
+    selection_scale: float  # c of σ's natural map
 
     def terms(self, xi: np.ndarray) -> Terms:
         """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
-        x, z = self.split(xi)
+        x, z = self.layout.split(xi)
         phi, omega, sigma, cost = self._set_terms(xi)
-        chi = 0.5 * float(np.sum(self._end_residual(x, z) ** 2))
-        upsilon = 0.5 * self._integral(np.sum(self._consistency(x, z) ** 2, axis=1))
+        chi = 0.5 * float(np.sum(self.end_residual(x, z) ** 2))
+        upsilon = 0.5 * self.integral(np.sum(self.consistency(x, z) ** 2, axis=1))
         total = phi + chi + omega + upsilon + sigma
         objective = cost + self.penalty * total if self.cost is not None else total
         return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective)
-
-    def objective(self, xi: np.ndarray) -> float:
-        return self.terms(xi).objective
 
     def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
         """γ ↦ the objective at ξ + γG, what a line search minimizes (paper (180)).
@@ -74,12 +87,12 @@ class Values:
         `objective(ξ + γG)` to rounding; a trial where the model is NaN/inf raises as
         `objective` does.
         """
-        x, z = self.split(xi)
-        dx, dz = self.split(direction)
+        x, z = self.layout.split(xi)
+        dx, dz = self.layout.split(direction)
         zero = np.zeros_like(dx)
         quadratic = _Parabola.along(  # υ and χ: each (r(ξ), r's change per unit γ, w)
-            (self._consistency(x, z), self._consistency(dx, dz), self.weights[:, None]),
-            (self._end_residual(x, z), self._end_residual(dx, dz) - self._end_residual(zero, zero), 1.0),
+            (self.consistency(x, z), self.consistency(dx, dz), self.grid.weights[:, None]),
+            (self.end_residual(x, z), self.end_residual(dx, dz) - self.end_residual(zero, zero), 1.0),
         )
 
         def objective(gamma: float) -> float:
@@ -91,44 +104,45 @@ class Values:
 
     def _set_terms(self, xi: np.ndarray) -> tuple[float, float, float, float]:
         """φ, ω, σ and the cost at ξ, the terms not quadratic in ξ, from the pieces' values."""
-        x, z = self.split(xi)
-        y, lam = self.arguments(xi), self.selections(xi)
-        phi = 0.5 * self._integral(sum(h**2 for h in self._distances(y, z, lam)))
-        omega = 0.5 * self._integral(np.sum(self._surface(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
-        sigma = 0.5 * self._integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.p else 0.0
-        cost = self._integral(self._cost_integrand(y)) if self.cost is not None else 0.0
+        x, z = self.layout.split(xi)
+        y, lam = self.layout.arguments(xi), self.layout.selections(xi)
+        phi = 0.5 * self.integral(sum(h**2 for h in self._distances(y, z, lam)))
+        omega = 0.5 * self.integral(np.sum(self.surface_at(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
+        sigma = 0.5 * self.integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.layout.p else 0.0
+        cost = self.integral(self._cost_integrand(y)) if self.cost is not None else 0.0
         return phi, omega, sigma, cost
 
     def _distances(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[np.ndarray]:
         """h_b (N,) of every block from the pieces' values (no gradients): an interval's in
         closed form, an S_k block's at its ψ*."""
-        return [self._interval_distance(b, y, z, lam) if block.size == 1 else self._state_sphere(block, y, z).h
-                for b, block in enumerate(self.blocks)]
+        return [self.pieces.interval_distance(block, y, z, self.layout.block_selections(b, lam)) if block.size == 1
+                else self.pieces.state_sphere(block, y, z).h for b, block in enumerate(self.layout.blocks)]
 
-    def _integral(self, values: np.ndarray) -> float:
+    def integral(self, values: np.ndarray) -> float:
         """Σ_k w_k·values_k (an elementwise sum: a BLAS dot goes multi-threaded above ~1e4 nodes)."""
-        return float(np.sum(self.weights * values))
+        return float(np.sum(self.grid.weights * values))
 
     def boundary_error(self, xi: np.ndarray) -> float:
         """max |x_j(T) − xT_j| over J and |x_i(T) − x_i(0)| over the periodic P, read from the
         trajectory x itself (0 if both are empty). χ measures x0 + ∫z instead; the two differ
         by the consistency error at T."""
-        x = xi[:, : self.n]
-        end = np.concatenate([x[-1, self.end] - self.model.end_values, x[-1, self.periodic] - x[0, self.periodic]])
+        x = xi[:, : self.layout.n]
+        end = np.concatenate([x[-1, self.end] - self.end_values, x[-1, self.periodic] - x[0, self.periodic]])
         return float(np.max(np.abs(end))) if end.size else 0.0
 
     def residuals(self, xi: np.ndarray) -> Residuals:
-        x, z = self.split(xi)
-        h = np.max([np.max(h) for h in self._distances(self.arguments(xi), z, self.selections(xi))])
+        x, z = self.layout.split(xi)
+        distances = self._distances(self.layout.arguments(xi), z, self.layout.selections(xi))
+        h = np.max([np.max(h) for h in distances])
         surface_error = None
         if self.surface is not None:
-            surface_error = float(np.max(np.abs(self._surface(x)[0])))
+            surface_error = float(np.max(np.abs(self.surface_at(x)[0])))
         return Residuals(
             boundary_error=self.boundary_error(xi),
             inclusion_residual=float(h),
             surface_error=surface_error,
-            consistency_error=float(np.max(np.abs(self._consistency(x, z)))),
-            selection_residual=float(np.max(np.abs(self.selection_residual(xi, scale=1.0)[0]))) if self.p else None,
+            consistency_error=float(np.max(np.abs(self.consistency(x, z)))),
+            selection_residual=float(np.max(np.abs(self.selection_residual(xi, scale=1.0)[0]))) if self.layout.p else None,
         )
 
     def selection_residual(self, xi: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -138,23 +152,24 @@ class Values:
         columns (second-order-cone complementarity). r = 0 exactly when λ ∈ Sgn(s). `scale` is
         c (default: the functional's `selection_scale`)."""
         c = self.selection_scale if scale is None else scale
-        y, lam = self.arguments(xi), self.selections(xi)
+        y, lam = self.layout.arguments(xi), self.layout.selections(xi)
+        args, p = self.layout.args, self.layout.p
         s, ds = self.switch_values(y)
         moved = lam + c * s
         residual = lam - self.project(moved)
-        jacobian = np.zeros((y.shape[0], self.p, self.width))
+        jacobian = np.zeros((y.shape[0], p, self.layout.width))
         inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
-        jacobian[:, :, : self.args] = -c * inside[:, :, None] * ds
-        columns = np.arange(self.p)
-        jacobian[:, columns, self.args + columns] = 1.0 - inside
-        for first, width in self.balls:  # P_B's Jacobian: I inside the ball, (I − ŵŵᵀ)/|w| outside
+        jacobian[:, :, :args] = -c * inside[:, :, None] * ds
+        columns = np.arange(p)
+        jacobian[:, columns, args + columns] = 1.0 - inside
+        for first, width in self.layout.balls:  # P_B's Jacobian: I inside the ball, (I − ŵŵᵀ)/|w| outside
             block = slice(first, first + width)
             derivative = _ball_projection_jacobian(moved[:, block])
-            jacobian[:, block, : self.args] = -c * derivative @ ds[:, block]
-            jacobian[:, block, self.args + first : self.args + first + width] = np.eye(width) - derivative
-        rows, cols = self._hold_left_limits(residual, lam)  # its −1 on λ_{k−1} is the caller's (Functional.left_limits)
+            jacobian[:, block, :args] = -c * derivative @ ds[:, block]
+            jacobian[:, block, args + first : args + first + width] = np.eye(width) - derivative
+        rows, cols = self._hold_left_limits(residual, lam)  # its −1 on λ_{k−1} is the caller's (:meth:`left_limits`)
         jacobian[rows, cols, :] = 0.0
-        jacobian[rows, cols, self.args + cols] = 1.0
+        jacobian[rows, cols, args + cols] = 1.0
         return residual, jacobian
 
     def _hold_left_limits(self, residual: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -175,11 +190,11 @@ class Values:
         accurate is the regime the interval ends in (a crossing's or a stop's side before
         it). Columns on the surface before the point (sliding, sticking), and a vector sign's,
         keep the natural map."""
-        left = self.grid.left_limits if self.p else np.zeros(0, dtype=int)
+        left = self.grid.left_limits if self.layout.p else np.zeros(0, dtype=int)
         if not left.size:
-            return left, np.zeros((0, self.p), dtype=bool)
+            return left, np.zeros((0, self.layout.p), dtype=bool)
         held = np.abs(lam[left - 1]) >= 1.0 - SATURATED
-        for first, width in self.balls:  # a vector sign keeps its natural map (λ_k = λ_{k−1} at a curved
+        for first, width in self.layout.balls:  # a vector sign keeps its natural map (λ_k = λ_{k−1} at a curved
             held[:, first : first + width] = False  # stop left the isotropic puck unsolved)
         return left, held
 
@@ -194,7 +209,7 @@ class Values:
         """P of every selection's columns (N, p): the clip to [−1, 1], a vector sign's k columns
         projected onto the unit ball (w/max(1, |w|))."""
         out = np.clip(values, -1.0, 1.0)
-        for first, width in self.balls:
+        for first, width in self.layout.balls:
             block = values[:, first : first + width]
             out[:, first : first + width] = block / np.maximum(1.0, np.linalg.norm(block, axis=1))[:, None]
         return out
@@ -202,63 +217,54 @@ class Values:
     def switch_values(self, y: np.ndarray, gradients: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """s (N, p) of every selection column (a vector sign's k components in its k columns) and,
         with `gradients`, ∇s (N, p, n + m), checked."""
-        nodes = y.shape[0]
-        s = np.empty((nodes, self.p))
-        ds = np.empty((nodes, self.p, self.args)) if gradients else None
-        for group in self.selection_groups:
-            value, grad = self._switch(self.blocks[group.block], group.term, y)
+        nodes, p, args = y.shape[0], self.layout.p, self.layout.args
+        s = np.empty((nodes, p))
+        ds = np.empty((nodes, p, args)) if gradients else None
+        for group in self.layout.selection_groups:
+            value, grad = self.pieces.switch(self.layout.blocks[group.block], group.term, y)
             s[:, group.columns] = value.reshape(nodes, group.width)
             if ds is not None:
-                ds[:, group.columns] = grad.reshape(nodes, group.width, self.args)
+                ds[:, group.columns] = grad.reshape(nodes, group.width, args)
         return s, ds
 
     def set_bounds(self, xi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray] | None]:
         """For each one-coordinate block the interval [lo, hi] of F_b(x(t_k)); None for S_k blocks."""
-        y, lam = self.arguments(xi), self.selections(xi)
+        y, lam = self.layout.arguments(xi), self.layout.selections(xi)
         bounds: list[tuple[np.ndarray, np.ndarray] | None] = []
-        for b, block in enumerate(self.blocks):
+        for b, block in enumerate(self.layout.blocks):
             if block.size != 1:
                 bounds.append(None)
                 continue
-            zero = np.zeros((y.shape[0], self.n))
-            plus, minus = self._sides_1d(block, y, zero, self._block_selections(b, lam))  # ℓ(ψ) = −c(F, ψ) at z = 0
+            zero = np.zeros((y.shape[0], self.layout.n))
+            selections = self.layout.block_selections(b, lam)
+            plus, minus = self.pieces.sides_1d(block, y, zero, selections)  # ℓ(ψ) = −c(F, ψ) at z = 0
             bounds.append((minus.ell, -plus.ell))
         return bounds
 
-    def consistency(self, xi: np.ndarray) -> np.ndarray:
-        """x − x0 − ∫_0^t z at every node, (N, n)."""
-        return self._consistency(*self.split(xi))
-
-    def end_residual(self, xi: np.ndarray) -> np.ndarray:
+    def end_residual(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         """x_j(0) + ∫_0^T z_j − xT_j for j ∈ J, then ∫_0^T z_i (= x_i(T) − x_i(0)) for i ∈ P."""
-        return self._end_residual(*self.split(xi))
-
-    def _end_residual(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         if not (self.end.size or self.periodic.size):
             return np.zeros(0)
-        fixed = x[0, self.end] + self.grid.integral(z[:, self.end]) - self.model.end_values
+        fixed = x[0, self.end] + self.grid.integral(z[:, self.end]) - self.end_values
         return np.concatenate([fixed, self.grid.integral(z[:, self.periodic])])
 
-    def _consistency(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    def consistency(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         """x_k − x(t_0) − ∫_0^{t_k} z (x(t_0) = x0 where given)."""
         return x - x[:1] - self.grid.cumulative(z)
 
-    def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def surface_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """e(x) (N, o) and ∂e/∂x (N, o, n), checked; requires a surface."""
         e, de = self.surface.function(x)  # type: ignore[union-attr]
-        self._check("surface", e, (x.shape[0], None))
-        self._check("surface Jacobian", de, (x.shape[0], e.shape[1], self.n))
+        self.pieces.check("surface", e, (x.shape[0], None))
+        self.pieces.check("surface Jacobian", de, (x.shape[0], e.shape[1], self.layout.n))
         return e, de
-
-    def surface_values(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """e(x) (N, o) and ∂e/∂x (N, o, n); requires a surface."""
-        return self._surface(self.split(xi)[0])
 
     def _cost_integrand(self, x: np.ndarray) -> np.ndarray:
         total = np.zeros(x.shape[0])
         for fn in self.cost.max_groups:  # type: ignore[union-attr]
-            total += _reduce_last(np.maximum, self._scalar_pieces(fn, x, "cost max-group")[0])
+            total += _reduce_last(np.maximum, self.pieces.scalar_pieces(fn, x, "cost max-group")[0])
         for fn in self.cost.min_groups:  # type: ignore[union-attr]
-            total += _reduce_last(np.minimum, self._scalar_pieces(fn, x, "cost min-group")[0])
+            total += _reduce_last(np.minimum, self.pieces.scalar_pieces(fn, x, "cost min-group")[0])
         return total
 
 

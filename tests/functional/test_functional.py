@@ -922,7 +922,7 @@ def test_triangle_directional_derivative_beyond_edges():
     model = TriangleModel()
     functional = make(model, 9)
     xi = _triangle_point(functional, 61, "edge")
-    side = functional._block_states(functional.arguments(xi), functional.split(xi)[1], functional.selections(xi))[0]
+    side = functional.pieces.state(functional.blocks[0], functional.arguments(xi), functional.split(xi)[1])
     assert side.faces is not None and side.faces[0].size == 9  # an edge at every node
     assert np.allclose(side.faces[1][0].sum(axis=1), 1.0) and np.allclose(np.sort(side.faces[1][0])[:, 1:], 0.5)
     qd = functional.quasidifferential(xi, TINY_DELTA)

@@ -139,7 +139,7 @@ def _iterates(functional: Functional, count: int = 4) -> list[np.ndarray]:
 
 def _sphere_states(functional: Functional, xi: np.ndarray):
     y, z = functional.arguments(xi), functional.split(xi)[1]
-    return [functional._state_sphere(block, y, z) for block in functional.blocks if block.size > 1]
+    return [functional.pieces.state_sphere(block, y, z) for block in functional.blocks if block.size > 1]
 
 
 @pytest.mark.parametrize("name", S2_MODELS + ["test-balls-3"])
@@ -246,7 +246,7 @@ def _counted(objective, pairs):
 
 
 def _ell_at(functional, xi):
-    """The objective ℓ of the (first) S_k block's search at ξ, as _state_sphere builds it."""
+    """The objective ℓ of the (first) S_k block's search at ξ, as Pieces.state_sphere builds it."""
     found = []
     original = functional_module.maximize_on_sphere
     functional_module.maximize_on_sphere = lambda objective, *a, **k: found.append(objective) or original(objective, *a, **k)

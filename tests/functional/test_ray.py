@@ -84,12 +84,13 @@ def test_ray_is_accurate_where_it_passes_through_a_solution():
 @pytest.mark.parametrize("name", ["paper-7.1", "paper-7.3", "paper-7.3-sets", "relaxing-periodic"])
 @pytest.mark.parametrize("signs", ["exact", "band"])
 def test_values_only_distances_equal_the_sides(name, signs):
-    """φ's h of a one-coordinate block from values alone is :meth:`_state_1d`'s h, bit for bit."""
+    """φ's h of a one-coordinate block from values alone is :meth:`Pieces.state_1d`'s h, bit for bit."""
     model = MODELS[name]()
     functional = Functional(model, Grid(model.T, 41, model.default_scheme), signs=signs)
     rng = np.random.default_rng(11)
     xi = functional.initial_point() + 0.5 * rng.standard_normal(functional.free.shape) * functional.free
     y, z, lam = functional.arguments(xi), functional.split(xi)[1], functional.selections(xi)
     for b, block in enumerate(functional.blocks):
-        side = functional._state_1d(block, y, z, functional._block_selections(b, lam))
-        np.testing.assert_array_equal(functional._interval_distance(b, y, z, lam), side.h)
+        selections = functional.block_selections(b, lam)
+        side = functional.pieces.state_1d(block, y, z, selections)
+        np.testing.assert_array_equal(functional.pieces.interval_distance(block, y, z, selections), side.h)
