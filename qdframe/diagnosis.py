@@ -124,8 +124,8 @@ def reach_bound(functional: Functional, xi: np.ndarray, j: int) -> str | None:
     psi[:, list(block.coords).index(j)] = 1.0
     zero = np.zeros((y.shape[0], functional.n))
     with np.errstate(all="ignore"):
-        faster = float(np.max(-functional._side(block, y, zero, psi).ell))  # S+: the largest x_j'
-        slower = float(np.max(-functional._side(block, y, zero, -psi).ell))  # S−: the largest −x_j'
+        faster = float(np.max(-functional.pieces.side(block, y, zero, psi).ell))  # S+: the largest x_j'
+        slower = float(np.max(-functional.pieces.side(block, y, zero, -psi).ell))  # S−: the largest −x_j'
     start, T = float(model.x0[j]), float(model.T)
     if np.isfinite(faster) and target > start + T * faster + margin:
         return (f"{name}' ≤ {faster:.4g} at every state tried, so {name}(T) ≤ "
@@ -234,7 +234,7 @@ def _empty(functional: Functional, block: SetBlock, sides: DistanceSides, y: np.
     if len(ells) == 2:
         total = ells[0] + ells[1]
     else:
-        total = ells[0] + functional._side(block, y, z, -sides.sides[0][2]).ell
+        total = ells[0] + functional.pieces.side(block, y, z, -sides.sides[0][2]).ell
     return total > EMPTY_TOL * (1.0 + np.abs(ells[0]))
 
 

@@ -179,7 +179,7 @@ def selection_amplitude(functional: Functional, result: SolveResult) -> float:
     """The largest |sense·a(y)| of a sign term along the trajectory: how far a selection's
     error moves a velocity."""
     y = result.x if result.u is None else np.concatenate([result.x, result.u], axis=1)
-    return max((float(np.max(np.abs(functional._amplitude_values(functional.blocks[b], term, y))))
+    return max((float(np.max(np.abs(functional.pieces.amplitude_values(functional.blocks[b], term, y))))
                 for b, term in functional.sign_terms), default=0.0)
 
 
@@ -199,7 +199,7 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     w = result.z.copy()
     for (b, term), k in zip(exact.sign_terms, exact.sign_columns):
         coord = exact.blocks[b].coords[0]
-        w[:, coord] -= term.sense * exact._amplitude_values(exact.blocks[b], term, y) * lam[:, k]
+        w[:, coord] -= term.sense * exact.pieces.amplitude_values(exact.blocks[b], term, y) * lam[:, k]
     t = grid.t
 
     def rule(values: np.ndarray) -> Callable[[float], np.ndarray]:

@@ -331,7 +331,7 @@ def _support(model: InclusionModel, block: Any, y: np.ndarray, zb: np.ndarray, m
 
     def value(rows: np.ndarray) -> np.ndarray:
         zero = np.zeros((rows.shape[0], model.n_states))
-        return -functional._side(block, rows, zero, psi).ell
+        return -functional.pieces.side(block, rows, zero, psi).ell
 
     if means:
         return 0.5 * (value(y[:-1]) + value(y[1:]))

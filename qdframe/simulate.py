@@ -197,7 +197,7 @@ class _Stepper:
         dlo, dhi = np.empty((nodes, n, f.width)), np.empty((nodes, n, f.width))
         zero = np.zeros((nodes, n))
         for b, (coord, block) in enumerate(zip(self.coords, f.blocks)):
-            plus, minus = f._sides_1d(block, y, zero, f._block_selections(b, lam))  # ℓ(±1) at z = 0: ∓(the ends)
+            plus, minus = f.pieces.sides_1d(block, y, zero, f.block_selections(b, lam))  # ℓ(±1) at z = 0: ∓(the ends)
             hi[:, coord], lo[:, coord] = -plus.ell, minus.ell
             dhi[:, coord], dlo[:, coord] = -plus.gradient(f.width), minus.gradient(f.width)
         for i, j in f.resolved.items():  # z_i ≡ x_j: no block

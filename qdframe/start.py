@@ -179,7 +179,7 @@ def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
         y = exact.arguments(row)
         B = np.zeros((t.size, n, p))
         for (b, term), k in zip(exact.sign_terms, exact.sign_columns):
-            B[:, exact.blocks[b].coords[0], k] += term.sense * exact._amplitude_values(exact.blocks[b], term, y)
+            B[:, exact.blocks[b].coords[0], k] += term.sense * exact.pieces.amplitude_values(exact.blocks[b], term, y)
         s, ds = exact.switch_values(y)
         ds = ds[:, :, :n]
         starts = np.array([start for start, _ in motion.modes])

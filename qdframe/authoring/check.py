@@ -256,7 +256,7 @@ class _SupportWidth:
         least = np.full(y.shape[0], np.inf)
         for psi in directions:
             psi = np.tile(psi, (y.shape[0], 1))
-            width = -self.functional._side(block, y, zero, psi).ell - self.functional._side(block, y, zero, -psi).ell
+            width = -self.functional.pieces.side(block, y, zero, psi).ell - self.functional.pieces.side(block, y, zero, -psi).ell
             least = np.minimum(least, width)
         return least
 

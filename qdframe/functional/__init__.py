@@ -203,19 +203,6 @@ class Functional(Layout):
         """The cost's max-groups and min-groups: lists of (values (N, m), gradients (N, m, n + m))."""
         return self.jacobians.cost_pieces(xi)
 
-    # the names qdframe's diagnosis, plotting, simulate, start, estimates and authoring.check call
-    def _side(self, block: SetBlock, y: np.ndarray, z: np.ndarray, psi: np.ndarray, maxes=None, selections=None):
-        return self.pieces.side(block, y, z, psi, maxes, selections)
-
-    def _sides_1d(self, block: SetBlock, y: np.ndarray, z: np.ndarray, selections: list | None = None):
-        return self.pieces.sides_1d(block, y, z, selections)
-
-    def _block_selections(self, b: int, lam: np.ndarray) -> list[tuple[int, np.ndarray, float] | None]:
-        return self.block_selections(b, lam)
-
-    def _amplitude_values(self, block: SetBlock, term, y: np.ndarray) -> np.ndarray:
-        return self.pieces.amplitude_values(block, term, y)
-
     def pack(self, x: np.ndarray, z: np.ndarray, u: np.ndarray | None = None,
              selections: np.ndarray | None = None) -> np.ndarray:
         """ξ from its parts; selections default to the band's, clip(s(y)/β, −1, 1) per term."""
