@@ -124,6 +124,41 @@ def test_a_peer_is_a_module_and_an_entry_point(plugin):
         == "extension-peer"
 
 
+def test_the_peer_in_the_benchmark_doc_runs_as_written(tmp_path, monkeypatch):
+    """docs/benchmarks.md's example peer, copied from the doc into a fresh package, states the
+    initial-value problems only and its runs are judged against the reference."""
+    doc = (ROOT / "docs" / "benchmarks.md").read_text()
+    code = re.search(r'```python\n("""my_peers/ivp\.py.*?)```', doc, re.S).group(1)
+    (tmp_path / "my_peers").mkdir()
+    (tmp_path / "my_peers" / "__init__.py").write_text("")
+    (tmp_path / "my_peers" / "ivp.py").write_text(code)
+    info = tmp_path / "my_peers-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-peers\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text('[qdframe.peers]\nsolve_ivp = my_peers.ivp:SolveIVP\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    registry.refresh()
+    try:
+        sweep = plan("quick", models=["block-stop-stick", "block-stop-stick-bvp"], directions=["gauss-newton"],
+                     nodes=[21], accuracy=[], bvp_tols=[1e-6], peers=True)
+        mine = [case for case in sweep.cases if case.peer == "solve_ivp"]
+        assert [case.model for case in mine] == ["block-stop-stick"]  # the two-point form: declined
+        row = run_case(mine[0])
+        assert row["status"] == "solved" and row["error"] < 1e-4 and row["claim"] == "confirmed"
+    finally:
+        monkeypatch.undo()
+        registry.refresh()
+
+
+def test_an_unavailable_peer_fails_its_rows_with_the_reason(plugin, monkeypatch):
+    from extension_plugin import Exact
+
+    monkeypatch.setattr(Exact, "unavailable", lambda self: "not here; pip install extension-plugin")
+    monkeypatch.setattr(Exact, "run", lambda self, model, setting: pytest.fail("run called on an unavailable peer"))
+    row = run_case(Case("block-stop-stick", "extension-peer", "closed form", 21, 10, None, peer="extension-peer"))
+    assert row["status"] == "failed" and "pip install extension-plugin" in row["message"]
+
+
 def _name_literals() -> dict[str, set[str]]:
     """Each registered model name -> the files of qdframe/bench holding it as a string literal."""
     names = set(registry.names("models"))

@@ -98,11 +98,12 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
                      help="gauss-newton's accuracy= targets, each with a row for qdframe.solve(model) as a user calls it "
                           "(default: the suite's; 'none' for none, and no default row)")
     run.add_argument("--bvp-tols", type=tolerances, metavar="E,..",
-                     help="solve_bvp's tol ladder (default: the suite's; 'none' for none)")
+                     help="the tol ladder of the peers whose knob is a tolerance, solve_bvp's (default: the "
+                          "suite's; 'none' for none)")
     run.add_argument("--peers", action="store_true",
-                     help="also run the peers on the models they can state: nosnoc (the friction and sliding "
-                     "models, and the problems with a bounded input) and scipy's solve_bvp (the friction and "
-                     "sliding models)")
+                     help="also run the registered peers (qdframe list) on the models they can state: nosnoc "
+                     "(the friction and sliding models, and the problems with a bounded input), scipy's solve_bvp "
+                     "(the friction and sliding models) and any plugin's")
     run.add_argument("--executor", choices=("local", "dask"), default="local",
                      help="local: one run after another here; dask: on dask.distributed (default local)")
     run.add_argument("--scheduler", metavar="ADDRESS",

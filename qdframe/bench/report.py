@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from ..status import TIME_LIMIT, Status
-from ..errors import InputError
-from ..registry import available
+from ..errors import InputError, QdframeError
+from ..registry import available, make_peer
 
 SHIFT = 10.0
 TARGETS = (1e-3, 1e-6)  # the errors whose time to reach report.md gives
@@ -497,7 +497,7 @@ def write_report(rows: Sequence[dict], meta: dict, out: str | Path, seconds: flo
              f"{_number(r.get('error'))})" for r in missed]
     text += ["", "![I against iteration](objective_history.png)", "", "## Runs", "", runs_table(rows), ""]
     if peers:
-        text += ["## Peers", "", PEER_NOTE, ""]
+        text += ["## Peers", "", PEER_NOTE, ""] + [f"- {name}: {_peer_description(name)}" for name in peers] + [""]
         for r in rows:
             if r["direction"] in peers:
                 text.append(f"- {r['model']}, {r['direction']} {r['knob']}: {r['status']} — {r.get('message') or ''}")
@@ -528,6 +528,14 @@ PEER_NOTE = (
     "it is judged on its own final mesh. nosnoc's iterations are IPOPT iterations summed over the homotopy; "
     "its wall time includes building the CasADi problem and IPOPT solver."
 )
+
+
+def _peer_description(name: str) -> str:
+    """A peer's one-line description, from its registered class."""
+    try:
+        return make_peer(name).description or "(no description)"
+    except QdframeError as exc:  # no longer installed: the rows still say what it did
+        return f"(not installed here: {exc})"
 
 
 def _range(values: Sequence[float]) -> str:

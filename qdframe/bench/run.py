@@ -501,6 +501,10 @@ def scheme_velocity(result) -> SchemeRule:
 def _run_peer(case: Case, row: dict, history: dict) -> None:
     model = resolve_model(case.model)
     runner = make_peer(case.peer)
+    reason = runner.unavailable()
+    if reason is not None:  # not usable here: a failed row that says why (and how to install it)
+        row.update(status=Status.FAILED, message=reason)
+        return
     peer = runner.run(model, case.nodes if runner.knob == "nodes" else case.tol)
     row.update(status=peer.status, message=peer.message, iterations=peer.iterations,
                wall_time_s=peer.wall_time_s, setup_time_s=peer.setup_time_s)
