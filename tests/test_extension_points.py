@@ -9,6 +9,7 @@ from __future__ import annotations
 import ast
 import re
 import textwrap
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -84,15 +85,25 @@ ENTRY_POINTS = {
 def plugin(tmp_path, monkeypatch):
     """A fresh package: one module and one entry point per extension point."""
     (tmp_path / "extension_plugin.py").write_text(PLUGIN)
-    info = tmp_path / "extension_plugin-0.1.dist-info"
+    with _distribution(tmp_path, "extension-plugin", ENTRY_POINTS, monkeypatch):
+        yield
+
+
+@contextmanager
+def _distribution(folder: Path, name: str, entry_points: dict[str, str], monkeypatch):
+    """An installed distribution `name` (its metadata in `folder`, on sys.path) with these
+    entry points (group -> lines), seen by the registry meanwhile."""
+    info = folder / f"{name.replace('-', '_')}-0.1.dist-info"
     info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: extension-plugin\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("".join(f"[{group}]\n{lines}\n\n" for group, lines in ENTRY_POINTS.items()))
-    monkeypatch.syspath_prepend(str(tmp_path))
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("".join(f"[{group}]\n{lines}\n\n" for group, lines in entry_points.items()))
+    monkeypatch.syspath_prepend(str(folder))
     registry.refresh()
-    yield
-    monkeypatch.undo()
-    registry.refresh()
+    try:
+        yield
+    finally:
+        monkeypatch.undo()
+        registry.refresh()
 
 
 def test_the_groups_here_are_every_registry_group():
@@ -132,22 +143,13 @@ def test_the_peer_in_the_benchmark_doc_runs_as_written(tmp_path, monkeypatch):
     (tmp_path / "my_peers").mkdir()
     (tmp_path / "my_peers" / "__init__.py").write_text("")
     (tmp_path / "my_peers" / "ivp.py").write_text(code)
-    info = tmp_path / "my_peers-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-peers\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text('[qdframe.peers]\nsolve_ivp = my_peers.ivp:SolveIVP\n')
-    monkeypatch.syspath_prepend(str(tmp_path))
-    registry.refresh()
-    try:
+    with _distribution(tmp_path, "my-peers", {"qdframe.peers": "solve_ivp = my_peers.ivp:SolveIVP"}, monkeypatch):
         sweep = plan("quick", models=["block-stop-stick", "block-stop-stick-bvp"], directions=["gauss-newton"],
                      nodes=[21], accuracy=[], bvp_tols=[1e-6], peers=True)
         mine = [case for case in sweep.cases if case.peer == "solve_ivp"]
         assert [case.model for case in mine] == ["block-stop-stick"]  # the two-point form: declined
         row = run_case(mine[0])
         assert row["status"] == "solved" and row["error"] < 1e-4 and row["claim"] == "confirmed"
-    finally:
-        monkeypatch.undo()
-        registry.refresh()
 
 
 def test_an_unavailable_peer_fails_its_rows_with_the_reason(plugin, monkeypatch):
