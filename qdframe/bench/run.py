@@ -829,7 +829,8 @@ def run_sweep(
         count[0] += 1
         error = row.get("error")
         line = (f"[{count[0]}/{len(pending)}] {row['model']} {row['solver']} {row['knob']}: "
-                f"{row['status']}, {row['iterations']} it, {_fmt_seconds(row.get('wall_time_s'))}, "
+                f"{row['status']}, {'—' if row.get('iterations') is None else row['iterations']} it, "
+                f"{_fmt_seconds(row.get('wall_time_s'))}, "
                 f"error {'—' if error is None else f'{error:.1e}'}")
         if runs.disable:
             say(line)
