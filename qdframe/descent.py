@@ -207,6 +207,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     if blocked is not None:
         where, point, error, why = blocked
         raise located(functional, point, error, where, why) from error
+    if status == Status.STATIONARY and _penalized_optimum(functional, xi, terms, options):
+        status, message = Status.SOLVED, ""
     remarks = []
     if eps < options.eps and status != Status.SOLVED:
         remarks.append(f"ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else ""))
@@ -215,6 +217,15 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                        + (f" (last: {rejected_label})" if rejected_label else ""))
     return result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
                      message, remarks, history, time.perf_counter() - clock)
+
+
+def _penalized_optimum(functional: Functional, xi: np.ndarray, terms, options: DescentOptions) -> bool:
+    """Whether a stationary iterate of ∫cost + λ·I is a solution of the discrete problem: with a
+    cost whose minimum is not 0 (a shortest time) the objective stays above tol, and its
+    stationary point is the answer where I ≤ tol and every pointwise check passes (how close
+    it is to the cost's minimum over the solutions: :mod:`qdframe.optimum`)."""
+    return (functional.cost is not None and terms.I <= options.tol
+            and not certify.failures(certify.checks(functional, xi, options.residual_tol)))
 
 
 def _record(functional: Functional, iteration: int, xi: np.ndarray, terms, gamma: float, step: np.ndarray | None,

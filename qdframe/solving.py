@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import unknowns
+from . import optimum, unknowns
 from .continuation import BAND_START_ITERATIONS, COARSE_EPS_FACTOR, grid_schedule, interpolate, iterate_view
 from .descent import EPS_FLOOR, DescentOptions, ProgressCallback, descend
 from .directions.base import DirectionSolver
@@ -136,16 +136,66 @@ def solve(
         result = unknowns.unwrap(wrapper, solve(wrapper, **arguments))
         result.wall_time_s = time.perf_counter() - clock
         return result
-    plan = _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol, eps_floor,
-                 continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes, certificate,
-                 simulate_start)
+    def planned(model: InclusionModel) -> _Plan:
+        return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
+                     eps_floor, continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes,
+                     certificate, simulate_start)
+
+    plan = planned(model)
     run = _run_grids(plan, progress)
+    rounds: list[optimum.Round] = []
+    if run.functional.cost is not None:  # a cost: λ raised until the minimizer is a solution (qdframe.optimum)
+        plan, run, rounds = _raised_penalty(model, plan, run, planned, progress)
     functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options, progress,
                                         estimate, plan.target if plan.refining else None, plan.target, certificate,
                                         max_nodes, plan.requested, plan.starts)
+    if rounds:
+        _penalty_verdict(functional, result, rounds, plan.target)
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     return _summarized(plan, run, functional, result)
+
+
+def _raised_penalty(model: InclusionModel, plan: _Plan, run: _Run, planned, progress) -> tuple[_Plan, _Run, list]:
+    """The rounds of ∫cost + λ·I with λ raised (:func:`qdframe.optimum.raise_penalty`), the
+    last round's plan and run; its history is every round's, counted on."""
+    last = {"plan": plan, "run": run}
+    history = list(run.result.history)
+
+    def rerun(model: InclusionModel) -> SolveResult:
+        last["plan"] = planned(model)
+        last["run"] = _run_grids(last["plan"], progress)
+        used, elapsed = history[-1].iteration, history[-1].time_s
+        history.extend(dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
+                       for record in last["run"].result.history)
+        return last["run"].result
+
+    def target(result: SolveResult) -> float:
+        return plan.target * model.accuracy_scale(result.x)
+
+    _, rounds = optimum.raise_penalty(model, run.result, target, plan.options.tol, rerun)
+    last["run"].result.history = history
+    return last["plan"], last["run"], rounds
+
+
+def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, target: float) -> None:
+    """The penalty's part added to the error estimate, the gap and the rounds in the options,
+    and `solved` withdrawn where the sum passes the target."""
+    weight = rounds[-1].weight
+    extra = optimum.penalty_error(rounds)
+    result.options = {**result.options, "penalty": weight, "optimality_gap": optimum.gap(result, weight),
+                      "penalty_rounds": [(r.weight, r.result.history[-1].iteration) for r in rounds]}
+    if result.error_estimate is not None:
+        result.error_estimate += extra
+    if result.status == Status.SOLVED:
+        bound = target * functional.model.accuracy_scale(result.x)
+        if result.error_estimate is not None and result.error_estimate > bound:
+            result.status = Status.UNCERTIFIED
+            result.remarks.append(f"with the penalty's part {extra:.1e} the error estimate "
+                                  f"{result.error_estimate:.1e} exceeds the target {bound:.1e}")
+        else:
+            result.remarks.append(f"an optimum of the cost: gap {optimum.gap(result, weight):.1e} (2λ·I, "
+                                  f"λ = {weight:.0e}), penalty's part of the estimate {extra:.1e}")
 
 
 @dataclass

@@ -46,12 +46,20 @@ class LinearizedSystem:
         self.residual, self.jacobian = self._least_squares(xi, [block for block in blocks if block.equation])
         del blocks
         self.constraints = self._constraints()
-        # the cost's max- and min-groups: (values (N, m), gradients (N, m, n + m)) each
-        self.max_groups, self.min_groups = functional.cost_pieces(xi) if functional.cost is not None else ([], [])
+        # the cost's max- and min-groups: (values (N, q), gradients (N, q, n + m)) each, a 0
+        # column for each selection λ (the cost is a function of (x, u) alone)
+        self.max_groups, self.min_groups = ([[(v, self._widened(g)) for v, g in groups]
+                                             for groups in functional.cost_pieces(xi)]
+                                            if functional.cost is not None else ([], []))
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
         self._hinge_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # :meth:`hinges`
         self._min_linear: np.ndarray | None = None  # :meth:`min_linear`
+
+    def _widened(self, gradients: np.ndarray) -> np.ndarray:
+        """Gradients in (x, u) padded with zeros to y = (x, u, λ)."""
+        missing = self.n + self.m - gradients.shape[-1]
+        return np.concatenate([gradients, np.zeros(gradients.shape[:-1] + (missing,))], axis=-1) if missing else gradients
 
     # column indices of each variable at every node: (N, width)
     def _columns(self, start: int, count: int) -> np.ndarray:

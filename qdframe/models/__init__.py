@@ -11,7 +11,7 @@
 - ``user_friction.py``: friction models as users bring them (a pendulum with pivot friction, a
   two-block chain, a relay oscillator), with reference motions from their hand-written equations;
 - ``identification.py``: problems whose end time or coefficient is unknown, with exact answers
-  (``block-stopping-time``, ``relay-period``, ``block-friction-coefficient``);
+  (``block-stopping-time``, ``relay-period``, ``block-friction-coefficient``, ``block-time-optimal``);
 - ``bounded_input.py``: problems with a bounded input that the nosnoc peer states too
   (``coulomb-rest-to-rest``, ``sliding-mode-terminal``).
 """

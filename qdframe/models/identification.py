@@ -9,6 +9,10 @@ relay-period                the period of the relay oscillator x1' = x2, x2' ∈
                             through (1, 0): T* = 4√2 (guess T = 5)
 block-friction-coefficient  the friction coefficient μ that stops a block thrown at v = 2
                             at p = 1 (it sticks from t = 1 to T = 1.5): μ* = 2 (guess 1)
+block-time-optimal          the shortest time to move a Coulomb block (friction 1) by a
+                            force |u| ≤ 2 from rest at 0 to rest at 1: T* = (4/3)·√1.5,
+                            full force forward until t = √1.5, then full force back (a cost
+                            ∫1 dt = T, :mod:`qdframe.optimum`; guess T = 2)
 ==========================  ===============================================================
 
 Each one's ``exact_solution(t)`` is the closed form at the true T and coefficients, at the
@@ -21,7 +25,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..sets import SetModel, Sgn
+from ..sets import Interval, SetModel, Sgn
 
 
 class _Known(SetModel):
@@ -114,3 +118,29 @@ class BlockFrictionCoefficient(_Known):
 
     def motion(self, t: np.ndarray) -> np.ndarray:
         return _braking(t, 2.0, 2.0)
+
+
+class BlockTimeOptimal(_Known):
+    """The shortest time to move a Coulomb block from rest at 0 to rest at 1 with a force
+    |u| ≤ 2 (p' = v, v' ∈ [−2, 2] − Sgn(v)): T free, the cost ∫1 dt = T. Bang-bang: v' = 1
+    until t₁ = √1.5, then v' = −3 until T* = (4/3)·t₁, where v = 0 and p = 1."""
+
+    name = "block-time-optimal"
+    description = "The shortest time to move a Coulomb block by |u| ≤ 2 from rest at 0 to rest at 1: T* = (4/3)·√1.5"
+    state_names = "p v"
+    default_x0 = (0.0, 0.0)
+    default_xT = {"p": 1.0, "v": 0.0}
+    default_T = 2.0
+    free_T = True
+    exact_T = 4 / 3 * np.sqrt(1.5)
+
+    def sets(self, p, v):
+        return {p: v, v: Interval(-2, 2) - Sgn(v)}
+
+    def running_cost(self, p, v):
+        return 1.0 + 0 * p  # ∫1 dt: the time
+
+    def motion(self, t: np.ndarray) -> np.ndarray:
+        switch = np.sqrt(1.5)
+        ahead, back = np.minimum(t, switch), np.maximum(t - switch, 0.0)
+        return np.stack([ahead**2 / 2 + switch * back - 1.5 * back**2, ahead - 3 * back], axis=1)
