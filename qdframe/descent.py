@@ -119,6 +119,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     watchdogs = 0  # full-step rounds tried where the descent stalled (:func:`qdframe.steps.watchdog`)
     eps, delta = options.eps, options.delta  # shrunk where the iterate is ε-stationary but not solved
     window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
+    optimal = False  # the stop is a stationary point of the objective (no decrease predicted, ε at the floor)
 
     def escape() -> bool:
         """Where the descent would stop `stationary`: a watchdog round of full steps (for a
@@ -164,11 +165,13 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                     uncertified.clear()
                     continue
                 status, message = Status.STATIONARY, f"deviation {deviation:.2e} ≤ ε at every node"
+                optimal = eps <= EPS_FLOOR  # ε-stationary down to the certified floor
                 break
             if direction.stationary:
                 if escape():
                     continue
                 status, message = Status.STATIONARY, f"{solver.name}: no further decrease predicted"
+                optimal = True
                 break
             step = keep_start(functional, solver, direction.step)
             gamma, value, bad = _line_search(functional, search, xi, step, terms.objective, direction.slope,
@@ -207,7 +210,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     if blocked is not None:
         where, point, error, why = blocked
         raise located(functional, point, error, where, why) from error
-    if status == Status.STATIONARY and _penalized_optimum(functional, xi, terms, options):
+    if optimal and _penalized_optimum(functional, xi, terms, options):
         status, message = Status.SOLVED, ""
     remarks = []
     if eps < options.eps and status != Status.SOLVED:
@@ -215,12 +218,14 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     if rejected and status != Status.SOLVED:
         remarks.append(f"{rejected} line-search trial point(s) rejected where the model is non-finite"
                        + (f" (last: {rejected_label})" if rejected_label else ""))
-    return result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
-                     message, remarks, history, time.perf_counter() - clock)
+    result = result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
+                       message, remarks, history, time.perf_counter() - clock)
+    result.options["stationary_point"] = optimal  # of the objective: a higher penalty can move it (qdframe.optimum)
+    return result
 
 
 def _penalized_optimum(functional: Functional, xi: np.ndarray, terms, options: DescentOptions) -> bool:
-    """Whether a stationary iterate of ∫cost + λ·I is a solution of the discrete problem: with a
+    """Whether a stationary point of ∫cost + λ·I (`optimal`) is a solution of the discrete problem: with a
     cost whose minimum is not 0 (a shortest time) the objective stays above tol, and its
     stationary point is the answer where I ≤ tol and every pointwise check passes (how close
     it is to the cost's minimum over the solutions: :mod:`qdframe.optimum`)."""

@@ -41,10 +41,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .estimates import dense
 from .model import InclusionModel
 from .status import Status
 
 if TYPE_CHECKING:
+    from .functional import Functional
     from .result import SolveResult
 
 GAP_FRACTION = 0.1  # the optimality gap 2λ·I is kept within this share of the target
@@ -56,10 +58,14 @@ WARM_SHARE = 0.1  # a round starts from the last one's trajectory where its gap 
 
 @dataclasses.dataclass
 class Round:
-    """One solve of 𝒥 + λ·I: its λ and its result."""
+    """One solve of 𝒥 + λ·I: its λ, its last grid's functional, its result and the iterations it took."""
 
     weight: float
+    functional: Functional
     result: SolveResult
+
+    def __post_init__(self) -> None:
+        self.iterations = self.result.history[-1].iteration if self.result.history else 0
 
 
 def penalized(model: InclusionModel, weight: float, previous: SolveResult | None) -> InclusionModel:
@@ -90,24 +96,28 @@ def gap(result: SolveResult, weight: float) -> float:
 def raise_by(result: SolveResult, weight: float, target: float, tol: float) -> float | None:
     """The factor to raise λ by after a round, or None where the round is the answer (solved
     with the gap within GAP_FRACTION·target) or no higher λ can help (it did not end solved
-    or stationary)."""
-    if result.status not in (Status.SOLVED, Status.STATIONARY):
-        return None
+    or at a stationary point of 𝒥 + λ·I, or the gap, I and every check are within their
+    tolerances already)."""
+    if not (result.status == Status.SOLVED
+            or (result.status == Status.STATIONARY and result.options.get("stationary_point"))):
+        return None  # the descent's own limit (a fixed ε, the budget) ended it, not λ
     wanted = gap(result, weight) / (GAP_FRACTION * target)
     if result.status == Status.SOLVED and wanted <= 1.0:
         return None
     checks = [check["value"] / check["tol"] for check in result.checks.values() if check["tol"] > 0]
     needed = max([wanted, np.sqrt(max(float(result.I), 0.0) / tol), *checks])
+    if needed <= 1.0:  # nothing λ governs is out of its tolerance: the descent's stop, not λ, ended the round
+        return None
     return float(np.clip(RAISE_SAFETY * needed, MIN_RAISE, MAX_RAISE))
 
 
-def raise_penalty(model: InclusionModel, first: SolveResult, target: Callable[[SolveResult], float], tol: float,
-                  rerun: Callable[[InclusionModel], SolveResult]) -> tuple[InclusionModel, list[Round]]:
-    """The rounds of 𝒥 + λ·I from the model's λ (`first` its result) with λ raised until
-    :func:`raise_by` says stop or λ would pass MAX_PENALTY; `rerun(model)` solves a model
-    (the grids without the verdict). Returns the model of the last round and every round."""
+def raise_penalty(model: InclusionModel, first: tuple[Functional, SolveResult], target: Callable[[SolveResult], float],
+                  tol: float, rerun: Callable[[InclusionModel], tuple[Functional, SolveResult]]) -> list[Round]:
+    """The rounds of 𝒥 + λ·I from the model's λ (`first`: its functional and result) with λ
+    raised until :func:`raise_by` says stop or λ would pass MAX_PENALTY; `rerun(model)` solves
+    a model (the grids without the verdict)."""
     weight = float(model.cost().weight)  # type: ignore[union-attr]
-    rounds, current = [Round(weight, first)], model
+    rounds = [Round(weight, *first)]
     while (factor := raise_by(rounds[-1].result, weight, target(rounds[-1].result), tol)) is not None:
         if weight * factor > MAX_PENALTY:
             rounds[-1].result.remarks.append(
@@ -118,21 +128,20 @@ def raise_penalty(model: InclusionModel, first: SolveResult, target: Callable[[S
         weight = max(weight * factor, 1.0 / (GAP_FRACTION * target(last)))
         # on the path x_λ where the penalty's share of the objective is small; else from the model's start
         warm = last.cost is not None and gap(last, rounds[-1].weight) <= WARM_SHARE * abs(last.cost)
-        current = penalized(model, weight, last if warm else None)
-        rounds.append(Round(weight, rerun(current)))
-    return current, rounds
+        rounds.append(Round(weight, *rerun(penalized(model, weight, last if warm else None))))
+    return rounds
 
 
 def penalty_error(rounds: list[Round]) -> float:
-    """The part of x's error the finite λ leaves: max|x_λ − x_λ'|·λ'/(λ − λ') over the last two
-    rounds (the grids of both rounds before the verdict: the same points, else x_λ'
-    interpolated to x_λ's times); 0 with one round (the cost's minimum reached with 𝒥 ≤ tol,
+    """The part of the error the finite λ leaves: the change from the round before, in what
+    the user is given (x at the user's times, and a T or parameters found: the model's
+    ``observed``, as the bisection estimate compares), times λ'/(λ − λ'), λ' the round
+    before (x_λ − x* is O(1/λ)); 0 with one round (the cost's minimum reached with 𝒥 ≤ tol,
     where the penalty is exact)."""
     if len(rounds) < 2:
         return 0.0
     last, before = rounds[-1], rounds[-2]
-    t, x = np.asarray(last.result.t, float), np.asarray(last.result.x, float)
-    earlier = np.asarray(before.result.x, float)
-    if earlier.shape != x.shape or not np.allclose(before.result.t, t, rtol=0.0, atol=1e-14 * max(1.0, t[-1])):
-        earlier = np.stack([np.interp(t, before.result.t, column) for column in earlier.T], axis=1)
-    return float(np.max(np.abs(x - earlier))) * before.weight / (last.weight - before.weight)
+    model, x, earlier = last.functional.model, np.asarray(last.result.x, float), np.asarray(before.result.x, float)
+    times = last.functional.grid.t * model.time_scale(x) / model.time_scale(earlier)
+    difference = model.observed(dense(before.functional.grid, earlier, times)) - model.observed(x)
+    return float(np.max(np.abs(difference))) * before.weight / (last.weight - before.weight)

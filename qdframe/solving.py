@@ -162,18 +162,18 @@ def _raised_penalty(model: InclusionModel, plan: _Plan, run: _Run, planned, prog
     last = {"plan": plan, "run": run}
     history = list(run.result.history)
 
-    def rerun(model: InclusionModel) -> SolveResult:
+    def rerun(model: InclusionModel) -> tuple[Functional, SolveResult]:
         last["plan"] = planned(model)
         last["run"] = _run_grids(last["plan"], progress)
         used, elapsed = history[-1].iteration, history[-1].time_s
         history.extend(dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
                        for record in last["run"].result.history)
-        return last["run"].result
+        return last["run"].functional, last["run"].result
 
     def target(result: SolveResult) -> float:
         return plan.target * model.accuracy_scale(result.x)
 
-    _, rounds = optimum.raise_penalty(model, run.result, target, plan.options.tol, rerun)
+    rounds = optimum.raise_penalty(model, (run.functional, run.result), target, plan.options.tol, rerun)
     last["run"].result.history = history
     return last["plan"], last["run"], rounds
 
@@ -184,7 +184,7 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
     weight = rounds[-1].weight
     extra = optimum.penalty_error(rounds)
     result.options = {**result.options, "penalty": weight, "optimality_gap": optimum.gap(result, weight),
-                      "penalty_rounds": [(r.weight, r.result.history[-1].iteration) for r in rounds]}
+                      "penalty_rounds": [(r.weight, r.iterations) for r in rounds]}
     if result.error_estimate is not None:
         result.error_estimate += extra
     if result.status == Status.SOLVED:

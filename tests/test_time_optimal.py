@@ -1,0 +1,69 @@
+"""Time-optimal problems (issue 32, item 3): a cost whose minimum over the solutions is not 0,
+solved by raising the penalty λ of ∫cost + λ·I (qdframe/optimum.py). Held against the exact
+bang-bang answer of block-time-optimal, T* = (4/3)·√1.5."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe import optimum
+from qdframe.models.identification import BlockTimeOptimal
+from qdframe.status import Status
+
+
+@pytest.fixture(scope="module")
+def fastest():
+    return qdframe.solve("block-time-optimal")
+
+
+def test_the_default_call_finds_the_shortest_time_and_the_bang_bang_motion(fastest):
+    assert fastest.status == Status.SOLVED
+    assert abs(fastest.T - BlockTimeOptimal.exact_T) <= 1e-6
+    assert fastest.solution_error <= 1e-6
+    # the estimate bounds the true error (the penalty's part included) and meets the target
+    assert fastest.solution_error <= fastest.error_estimate <= 1e-6 * max(1.0, float(np.max(np.abs(fastest.x))))
+
+
+def test_the_gap_2_lambda_I_is_the_distance_to_the_least_time(fastest):
+    """The first-order optimality gap T* − T_λ ≈ 2λ·I (optimum's docstring), against the exact T*."""
+    gap = fastest.options["optimality_gap"]
+    assert gap == pytest.approx(2 * fastest.options["penalty"] * fastest.I)
+    assert BlockTimeOptimal.exact_T - fastest.T == pytest.approx(gap, rel=0.05)
+
+
+def test_the_penalty_is_raised_from_the_models_own(fastest):
+    rounds = fastest.options["penalty_rounds"]
+    assert rounds[0][0] == 1.0 and len(rounds) >= 2
+    assert all(later[0] >= 10 * earlier[0] for earlier, later in zip(rounds, rounds[1:]))
+    assert sum(count for _, count in rounds) <= fastest.iterations  # then the meshes of the accuracy refinement
+
+
+def test_a_cost_with_minimum_zero_takes_one_round():
+    """paper-7.1 (∫|x1| dt, zero on its solution): the paper's λ = 10 is kept."""
+    result = qdframe.solve("paper-7.1", nodes=101)
+    assert result.options["penalty_rounds"] == [(10.0, result.iterations)] and result.options["penalty"] == 10.0
+
+
+def _result(status: Status, I: float, checks: dict | None = None, stationary: bool = False) -> SimpleNamespace:
+    """A stand-in with what :func:`optimum.raise_by` reads of a round's result."""
+    return SimpleNamespace(status=status, I=I, checks=checks or {}, options={"stationary_point": stationary})
+
+
+def test_raise_by_follows_the_first_order_rates():
+    # solved with the gap 2λI = 2e-9 within 0.1 of the target 1e-6: the answer
+    assert optimum.raise_by(_result(Status.SOLVED, 1e-18), 1e9, 1e-6, 1e-10) is None
+    # the gap 2e-5 is 200× too large: λ raised by 10·200 (I and the checks are within tolerance)
+    factor = optimum.raise_by(_result(Status.SOLVED, 1e-14), 1e9, 1e-6, 1e-10)
+    assert factor == pytest.approx(2000.0)
+    # a stationary point whose worst check is 3× its tolerance: at least MIN_RAISE
+    checks = {"inclusion": {"value": 3e-8, "tol": 1e-8}}
+    assert optimum.raise_by(_result(Status.STATIONARY, 1e-30, checks, True), 1.0, 1.0, 1e-10) == pytest.approx(30.0)
+    # the descent's own stop (a fixed ε, the budget), not a stationary point: λ is not what limits it
+    assert optimum.raise_by(_result(Status.STATIONARY, 1e-3, checks, False), 1.0, 1.0, 1e-10) is None
+    assert optimum.raise_by(_result(Status.MAX_ITER, 1e-3, checks, True), 1.0, 1.0, 1e-10) is None
+    # far from the solutions (I = 1): the largest raise
+    assert optimum.raise_by(_result(Status.STATIONARY, 1.0, {}, True), 1.0, 1.0, 1e-10) == optimum.MAX_RAISE
