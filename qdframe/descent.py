@@ -212,16 +212,22 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
         raise located(functional, point, error, where, why) from error
     if optimal and _penalized_optimum(functional, xi, terms, options):
         status, message = Status.SOLVED, ""
-    remarks = []
-    if eps < options.eps and status != Status.SOLVED:
-        remarks.append(f"ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else ""))
-    if rejected and status != Status.SOLVED:
-        remarks.append(f"{rejected} line-search trial point(s) rejected where the model is non-finite"
-                       + (f" (last: {rejected_label})" if rejected_label else ""))
+    remarks = [] if status == Status.SOLVED else _remarks(options, eps, delta, rejected, rejected_label)
     result = result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
                        message, remarks, history, time.perf_counter() - clock)
     result.options["stationary_point"] = optimal  # of the objective: a higher penalty can move it (qdframe.optimum)
     return result
+
+
+def _remarks(options: DescentOptions, eps: float, delta: float, rejected: int, label: str) -> list[str]:
+    """What an unsolved descent says after its reason: ε and δ shrunk, trial points rejected."""
+    remarks = []
+    if eps < options.eps:
+        remarks.append(f"ε and δ shrunk to {eps:.0e} and {delta:.0e}" + (" (the floor)" if eps <= options.eps_floor else ""))
+    if rejected:
+        remarks.append(f"{rejected} line-search trial point(s) rejected where the model is non-finite"
+                       + (f" (last: {label})" if label else ""))
+    return remarks
 
 
 def _penalized_optimum(functional: Functional, xi: np.ndarray, terms, options: DescentOptions) -> bool:

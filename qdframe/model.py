@@ -181,8 +181,9 @@ class Cost:
     """A cost integrand ∫ [Σ_j max_q a_jq(x) + Σ_j min_p b_jp(x)] dt with penalty weight λ.
 
     The descent then minimizes the cost + λ·I (paper Example 7.1). Each group's
-    `pieces(x)` returns values (N, m) and gradients (N, m, n). For `solved` to
-    certify anything the cost must be ≥ 0 with minimum 0 on a solution.
+    `pieces(x)` returns values (N, m) and gradients (N, m, n). Where the cost's least
+    value over the solutions is not 0 (a shortest time), λ is raised from `weight` until
+    the minimizer is a solution and an optimum within the target (:mod:`qdframe.optimum`).
     """
 
     max_groups: tuple[ScalarPieces, ...] = ()
