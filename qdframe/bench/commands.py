@@ -87,7 +87,7 @@ def _add_time_optimal_parser(bench_subparsers) -> argparse.ArgumentParser:
                         help="nosnoc's finite elements in all, split evenly over the stages; a total below the "
                              "stages or not a multiple of them is skipped (default 10,20,40,80)")
     parser.add_argument("--out", default="docs/bench/time-optimal", metavar="DIR",
-                        help="where report.md and results.json go (default docs/bench/time-optimal)")
+                        help="where report.md and results.csv go (default docs/bench/time-optimal)")
     return parser
 
 

@@ -16,7 +16,7 @@ everything a call does: nosnoc's CasADi/IPOPT build and qdframe's grids.
 
 from __future__ import annotations
 
-import json
+import csv
 import os
 import platform
 import time
@@ -162,11 +162,25 @@ def _load() -> str:
 
 
 def write_report(rows: Sequence[Row], out: str | Path, command: str, seconds: float) -> dict[str, Path]:
-    """report.md and results.json (the rows) in `out`."""
+    """report.md and results.csv (one line per row) in `out`."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    paths = {"report": folder / "report.md", "results": folder / "results.json"}
+    paths = {"report": folder / "report.md", "results": folder / "results.csv"}
     paths["report"].write_text(report(rows, command, seconds))
-    paths["results"].write_text(json.dumps({"command": command, "seconds": seconds, "exact_T": BlockTimeOptimal.exact_T,
-                                            "rows": [asdict(row) for row in rows]}, indent=1) + "\n")
+    write_rows(rows, paths["results"])
     return paths
+
+
+def write_rows(rows: Sequence[Row], path: Path) -> None:
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(Row.__dataclass_fields__))
+        writer.writeheader()
+        writer.writerows(asdict(row) for row in rows)
+
+
+def read_rows(path: Path) -> list[Row]:
+    """The rows of a results.csv (:func:`write_rows`)."""
+    numbers = {"wall_time_s", "T", "T_error", "trajectory_error"}
+    with open(path, newline="") as handle:
+        return [Row(**{key: float(value) if key in numbers else int(value) if key == "points" else value
+                       for key, value in line.items()}) for line in csv.DictReader(handle)]

@@ -1,9 +1,10 @@
 """`qdframe bench time-optimal`: nosnoc's time-optimal statement of block-time-optimal, and the
-command's table and report (qdframe's run replaced by a canned row: its solve is tests/test_solve's)."""
+command's table and report (qdframe's 5–9 s solve replaced by a canned row here; the docs' small
+`qdframe bench time-optimal …` command, run by tests/test_docs_commands.py, runs the real one)."""
 
 from __future__ import annotations
 
-import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -70,13 +71,22 @@ def test_command_prints_the_table_and_writes_the_report(monkeypatch, tmp_path, c
     report = (out / "report.md").read_text()
     assert report.startswith("# Time-optimal: block-time-optimal, qdframe against nosnoc")
     assert "`qdframe bench time-optimal --stages 4 --elements 4 --formulations global --out " in report
-    rows = json.loads((out / "results.json").read_text())["rows"]
-    assert rows[0]["solver"] == "qdframe" and rows[0]["trajectory_error"] == pytest.approx(0.0, abs=1e-15)
+    rows = time_optimal.read_rows(out / "results.csv")
+    assert rows[0].solver == "qdframe" and rows[0].trajectory_error == pytest.approx(0.0, abs=1e-15)
+    assert time_optimal.table(rows) in printed  # the file holds the printed figures
     if nosnoc_available() is None:
-        assert [row["setting"] for row in rows[2:]] == ["global s, 4 stages × 1 FE"]
-        assert "| nosnoc | global s, 4 stages × 1 FE | solved |" in printed and abs(rows[2]["T_error"]) < 1e-2
+        assert [row.setting for row in rows[2:]] == ["global s, 4 stages × 1 FE"]
+        assert "| nosnoc | global s, 4 stages × 1 FE | solved |" in printed and abs(rows[2].T_error) < 1e-2
 
 
 def test_command_refuses_an_unknown_formulation(tmp_path, capsys):
     assert main(["bench", "time-optimal", "--formulations", "piecewise", "--out", str(tmp_path)]) == 2
     assert "--formulations" in capsys.readouterr().err
+
+
+def test_the_docs_table_is_the_committed_report():
+    """docs/benchmarks.md quotes the table of docs/bench/time-optimal (results.csv, report.md) as made."""
+    root = Path(__file__).resolve().parents[2]
+    committed = time_optimal.table(time_optimal.read_rows(root / "docs" / "bench" / "time-optimal" / "results.csv"))
+    assert committed in (root / "docs" / "bench" / "time-optimal" / "report.md").read_text()
+    assert committed in (root / "docs" / "benchmarks.md").read_text()
