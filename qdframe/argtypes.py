@@ -82,6 +82,17 @@ def node_counts(text: str) -> tuple[int, ...]:
     return values
 
 
+def counts(text: str) -> tuple[int, ...]:
+    """Comma-separated counts ≥ 1."""
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated counts like 10,20, got {text!r}") from None
+    if any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"expected counts ≥ 1, got {text!r}")
+    return values
+
+
 def continuation(text: str) -> str | tuple[int, ...]:
     """"auto", "none" or comma-separated node counts ≥ 2."""
     if text in ("auto", "none"):

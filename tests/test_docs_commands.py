@@ -76,6 +76,9 @@ NOT_RUN = {
     "qdframe bench run --suite quick --peers --out quick": "a 3-minute measurement, run by test_bench_run.py",
     "qdframe bench run --suite quick --peers --out docs/bench/quick-new": "the same measurement, into the docs",
     "qdframe bench run --suite quick --peers --executor dask --out quick-dask": "the same through dask",
+    # block-time-optimal by qdframe (2 calls) and nosnoc (14 runs): 88 s on the loaded 2-core machine
+    # (2026-11-26); the docs' small variant runs here, tests/bench/test_time_optimal.py runs its code
+    "qdframe bench time-optimal": "a 90-second measurement",
     # the paper's method carried to a certified answer on paper-7.1: 4726 iterations, 42 s on the
     # 2-core machine (2026-11-26); tests/test_eps_shrink.py runs the ε/δ shrinking on 21 points
     "qdframe solve paper-7.1 --direction native": "a 42-second solve",
@@ -180,7 +183,7 @@ def _table(text: str) -> list[dict[str, str]]:
     lines = [line.strip() for line in text.splitlines() if line.strip().startswith("|")]
     header = [cell.strip() for cell in lines[0].strip("|").split("|")]
     rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in lines[1:]]
-    return [dict(zip(header, row)) for row in rows if row != header and not set("".join(row)) <= set("-")]
+    return [dict(zip(header, row)) for row in rows if row != header and not set("".join(row)) <= set("-:")]
 
 
 def _number(cell: str) -> float:
@@ -401,6 +404,15 @@ def _simulate_reaching(out: Outcome) -> None:
     assert (out.cwd / "example-out" / "reaching-phase.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def _time_optimal_small(out: Outcome) -> None:
+    """docs/benchmarks.md: qdframe's default call and nosnoc's global s on 4 stages (a stage boundary on
+    the switch at 0.75·T*) both find T* to 1e-8, and the report is written."""
+    rows = _table(out.stdout)
+    assert [(row["solver"], row["status"]) for row in rows] == [("qdframe", "solved"), ("nosnoc", "solved")]
+    assert all(_number(row["abs(T − T*)"]) <= 1e-8 for row in rows), rows
+    assert (out.cwd / "time-optimal-small" / "report.md").is_file()
+
+
 OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve paper-7.1 --nodes 101 --plot docs/figures/paper-7.1.png": _solved,
     "qdframe solve paper-7.2 --nodes 100001": _solved,
@@ -412,6 +424,8 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve paper-7.3 --nodes 101 --direction native": _papers_method_on_73,
     "qdframe simulate paper-7.3 --from -0.2 --to 0 --x0=-1,1,-1,-1,1,1": _simulated_reaching,
     "qdframe bench friction": _friction_suite,
+    "qdframe bench time-optimal --accuracy none --formulations global --stages 4 --elements 4 "
+    "--out time-optimal-small": _time_optimal_small,
     "qdframe bench friction --schemes radau-iia,trapezoid --nodes 101,1001": _friction_schemes,
     "python examples/accuracy.py": _accuracy_table,
     "python examples/friction.py": _friction_example,

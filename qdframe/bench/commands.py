@@ -1,7 +1,7 @@
 """`qdframe bench …`: every benchmark subcommand, its arguments and what it runs.
 
 ``add_bench_parser(commands, parser_class)`` adds ``bench`` and its subcommands
-(directions, hard, friction, accuracy, scale, run) to the ``qdframe`` parser, and
+(directions, hard, friction, accuracy, scale, unknowns, time-optimal, pages, run) to the ``qdframe`` parser, and
 ``main_bench(args, argv)`` runs the one chosen. Argument types and checks are the
 command line's own (:mod:`qdframe.argtypes`).
 """
@@ -15,7 +15,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..argtypes import integer, names, node_counts, positive_float, tolerances, vector, writable
+from ..argtypes import counts, integer, names, node_counts, positive_float, tolerances, vector, writable
 from ..errors import InputError
 from .run import SUITES
 
@@ -68,7 +68,27 @@ def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> N
     bench_unknowns.add_argument("--models", type=names, metavar="NAME,NAME,..",
                                 help="models with unknowns (default block-friction-coefficient,block-stopping-time)")
     bench_unknowns.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 10001,100001)")
+    _add_time_optimal_parser(benches)
     _add_run_parser(benches)
+
+
+def _add_time_optimal_parser(bench_subparsers) -> argparse.ArgumentParser:
+    """Add `time-optimal` to the subparsers of `qdframe bench`; returns its parser."""
+    parser = bench_subparsers.add_parser(
+        "time-optimal", help="block-time-optimal (T free) by qdframe and by nosnoc's time-optimal statement: wall "
+                             "time, T, |T − T*| and the trajectory's error, side by side")
+    parser.add_argument("--accuracy", type=tolerances, default=(1e-3,), metavar="E,..",
+                        help="qdframe's accuracy= runs besides the default call (default 1e-3; 'none' for none)")
+    parser.add_argument("--formulations", type=names, default=("global", "local"), metavar="NAME,..",
+                        help="nosnoc's speed of time: global (one s), local (one per control stage) (default both)")
+    parser.add_argument("--stages", type=counts, default=(10, 20), metavar="K,..",
+                        help="nosnoc's control stages (default 10,20)")
+    parser.add_argument("--elements", type=counts, default=(10, 20, 40, 80), metavar="M,..",
+                        help="nosnoc's finite elements in all, split evenly over the stages; a total below the "
+                             "stages or not a multiple of them is skipped (default 10,20,40,80)")
+    parser.add_argument("--out", default="docs/bench/time-optimal", metavar="DIR",
+                        help="where report.md and results.csv go (default docs/bench/time-optimal)")
+    return parser
 
 
 def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
@@ -121,6 +141,8 @@ def main_bench(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """Run the `qdframe bench` subcommand of `args`; `argv` is the command line (for reports)."""
     if args.bench_command == "run":
         return _run(args, argv)
+    if args.bench_command == "time-optimal":
+        return _time_optimal(args, argv)
     return {"directions": _directions, "hard": _hard, "friction": _friction, "accuracy": _accuracy,
             "scale": _scale, "pages": _pages, "unknowns": _unknowns}[args.bench_command](args)
 
@@ -206,6 +228,28 @@ def _unknowns(args: argparse.Namespace) -> int:
     print(unknown_cost.table(unknown_cost.run(args.models or unknown_cost.MODELS, args.nodes or unknown_cost.NODES,
                                               progress=_say())))
     return 0  # a measurement
+
+
+def _time_optimal(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    import time
+
+    from . import time_optimal
+    from .nosnoc_time_optimal import FORMULATIONS
+
+    unknown = [name for name in args.formulations if name not in FORMULATIONS]
+    if unknown:
+        raise InputError("--formulations", f"some of {', '.join(FORMULATIONS)}", ",".join(unknown))
+    try:  # fail before the runs, not after
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        raise InputError("--out", "a folder that can be made and written", args.out) from None
+    writable("--out", str(Path(args.out) / "report.md"))
+    start = time.perf_counter()
+    rows = time_optimal.run(args.accuracy, args.formulations, args.stages, args.elements, progress=_say())
+    paths = time_optimal.write_report(rows, args.out, shlex.join(["qdframe", *argv]), time.perf_counter() - start)
+    print(time_optimal.table(rows))
+    print(f"\n{paths['report']}, {paths['results']}")
+    return 0  # a measurement: the table gives each run's status
 
 
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:

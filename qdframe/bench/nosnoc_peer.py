@@ -18,7 +18,8 @@ the simplex, the mode chosen by the sign of a switching function c_i (S_i = [[1]
   terminal equality constraint; 10 control stages × ⌈(N − 1)/10⌉ finite elements each.
 
 Both: Radau IIA with n_s = 2 stage points, FESD step equilibration as nosnoc's defaults,
-complementarity tolerance 1e-9.
+complementarity tolerance 1e-9. (The time-optimal block, T free, is stated with a speed of
+time in :mod:`.nosnoc_time_optimal`, for ``qdframe bench time-optimal``; not in the sweep.)
 
 How it is read. nosnoc's trajectory is, on each finite element [t_e, t_e + h_e], the
 collocation polynomial of degree n_s through the element's start value and its stage
