@@ -193,7 +193,7 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
             result.status = Status.UNCERTIFIED
             result.remarks.append(f"with the penalty's part {extra:.1e} the error estimate "
                                   f"{result.error_estimate:.1e} exceeds the target {bound:.1e}")
-        else:
+        elif len(rounds) > 1:  # (one round: the cost's minimum reached with the model's λ, nothing to add)
             result.remarks.append(f"an optimum of the cost: gap {optimum.gap(result, weight):.1e} (2λ·I, "
                                   f"λ = {weight:.0e}), penalty's part of the estimate {extra:.1e}")
 
