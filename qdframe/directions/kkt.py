@@ -98,30 +98,47 @@ class KKTSolver:
                   right: np.ndarray, dense: np.ndarray) -> np.ndarray:
         """The system with the dense columns D (and their rows) bordered: K_RR factored as any
         system, then the Schur complement S = K_DD − K_DRK_RR⁻¹K_RD (|D| × |D|) solved densely.
-        K_RR is cut from H and C by masks on their index arrays (no conversion, no sort), and
-        K_RR⁻¹[right | K_RD] is one solve with |D| + 1 right-hand sides."""
+        K_RR is cut from H and C by masks on their index arrays (`_without`), and
+        K_RR⁻¹[right | K_RD] is one solve with |D| + 1 right-hand sides. Where D are H's last
+        columns (gauss-newton puts the constant states there) R's keep their numbers."""
         size, count = hessian.shape[0], constraints.shape[0]
         keep = np.ones(size, dtype=bool)
         keep[dense] = False
-        kept = np.flatnonzero(keep)
-        position = np.full(size, -1, dtype=hessian.indices.dtype)  # each column's place among R's (−1: in D)
-        position[kept] = np.arange(kept.size, dtype=position.dtype)
+        cut = size - dense.size
+        if dense[0] == cut:  # D trailing: R's rows of K are K's without rows cut … size − 1
+            position, inner = None, None
+        else:
+            kept = np.flatnonzero(keep)
+            position = np.full(size, -1, dtype=hessian.indices.dtype)  # each column's place among R's
+            position[kept] = np.arange(cut, dtype=position.dtype)
+            inner = np.concatenate([kept, size + np.arange(count)])
         columns_d = hessian[:, dense].toarray()  # H's D columns: K_RD's H rows and K_DD
-        h_rr = _without(hessian, keep, position, kept, dense)
+        h_rr = _without(hessian, keep, position, square=True)
         c_rr = _without(constraints, keep, position)
-        coupling = np.concatenate([columns_d[kept], constraints[:, dense].toarray()])  # K_RD: H's rows of R, then C's
-        schur = columns_d[dense]
-        inner = np.concatenate([kept, size + np.arange(count)])  # R's rows of K
+        stacked = np.zeros((cut + count, 1 + dense.size), order="F")  # [right_R | K_RD]: H's rows of R, then C's
+        if inner is None:
+            stacked[:cut, 0], stacked[cut:, 0] = right[:cut], right[size:]
+            stacked[:cut, 1:] = columns_d[:cut]
+        else:
+            stacked[:, 0] = right[inner]
+            stacked[:cut, 1:] = columns_d[kept]
+        if c_rr.nnz < constraints.nnz:  # C has entries in D
+            stacked[cut:, 1:] = constraints[:, dense].toarray()
+        coupling = stacked[:, 1:]
         solve = self._factored(h_rr, c_rr, soft)
-        both = solve(np.column_stack([right[inner], coupling]))
+        both = solve(stacked)
         first, through = both[:, 0], both[:, 1:]
-        schur -= coupling.T @ through
+        schur = columns_d[dense] - coupling.T @ through
         try:
             border = np.linalg.solve(schur, right[dense] - coupling.T @ first)
         except np.linalg.LinAlgError as exc:
             raise BackendError(f"direction 'gauss-newton': the bordered KKT solve failed ({exc})") from exc
+        inside = first - through @ border
         solution = np.empty(right.size)
-        solution[inner] = first - through @ border
+        if inner is None:
+            solution[:cut], solution[size:] = inside[:cut], inside[cut:]
+        else:
+            solution[inner] = inside
         solution[dense] = border
         return solution
 
@@ -218,21 +235,27 @@ def _permuted_solve(factor, right: np.ndarray, gather: np.ndarray, order: np.nda
     return solved if right.ndim == 2 else solved[:, 0]
 
 
-def _without(matrix: sp.spmatrix, keep: np.ndarray, position: np.ndarray, kept: np.ndarray | None = None,
-             dense: np.ndarray | None = None) -> sp.spmatrix:
-    """A CSR matrix's columns `keep` (renumbered by `position`), or, given the columns `kept`
-    and `dense` (the rest), a symmetric CSC matrix's rows and columns `keep`: its index array
-    masked, its pointers read off the mask's running count (indices stay sorted)."""
-    inside = keep[matrix.indices]
-    for column in () if dense is None else dense:  # the few D columns: all their entries out
+def _without(matrix: sp.spmatrix, keep: np.ndarray, position: np.ndarray | None, square: bool = False) -> sp.spmatrix:
+    """A CSR matrix's columns `keep`, or (`square`) a symmetric CSC matrix's rows and columns
+    `keep`, renumbered by `position` (None: the dropped ones are the last, the rest keep their
+    numbers): the index array masked, the pointers read off the mask's running count (indices
+    stay sorted). A CSR matrix with no entry to drop comes back with its own arrays."""
+    cut = int(np.count_nonzero(keep))
+    inside = matrix.indices < cut if position is None else keep[matrix.indices]
+    for column in np.flatnonzero(~keep) if square else ():  # the few D columns: all their entries out
         inside[matrix.indptr[column]: matrix.indptr[column + 1]] = False
-    running = np.concatenate([[0], np.cumsum(inside)])
-    indices = position[matrix.indices[inside]]
-    if kept is None:  # CSR: every row, some columns
-        return sp.csr_matrix((matrix.data[inside], indices, running[matrix.indptr]),
-                             shape=(matrix.shape[0], int(keep.sum())))
+    if not square and position is None and inside.all():
+        return sp.csr_matrix((matrix.data, matrix.indices, matrix.indptr), shape=(matrix.shape[0], cut))
+    running = np.zeros(inside.size + 1, dtype=matrix.indptr.dtype)
+    np.cumsum(inside, out=running[1:])
+    indices = matrix.indices[inside]
+    if position is not None:
+        indices = position[indices]
+    if not square:  # CSR: every row, some columns
+        return sp.csr_matrix((matrix.data[inside], indices, running[matrix.indptr]), shape=(matrix.shape[0], cut))
+    kept = np.flatnonzero(keep)
     indptr = running[matrix.indptr[np.concatenate([[0], kept + 1])]]
-    return sp.csc_matrix((matrix.data[inside], indices, indptr), shape=(kept.size, kept.size))
+    return sp.csc_matrix((matrix.data[inside], indices, indptr), shape=(cut, cut))
 
 
 def _assemble(hessian: sp.spmatrix, constraints: sp.csr_matrix, rows: np.ndarray,

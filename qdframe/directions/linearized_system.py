@@ -58,16 +58,21 @@ class Skeleton:
     def _constant_columns(self) -> np.ndarray | None:
         """Where each column of the extended unknowns goes in the KKT systems: a constant state
         (the model's `constant_states`, x_i' = 0: an unknown T or parameter) is one unknown
-        x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states."""
+        x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states. The
+        constant states' unknowns come last, after the other columns in their order: the KKT
+        solver borders them (dense columns) and cuts them off its trailing rows and columns."""
         constant = [i for i in self.f.model.constant_states if i not in self.f.resolved]
         if not constant:
             return None
         target = np.arange(self.size)
-        target[self.x_cols[:, constant]] = self.x_cols[0, constant]
+        first = self.x_cols[0, constant]
+        target[self.x_cols[:, constant]] = first
         target[self.z_cols[:, constant]] = -1
         target[self.Z_cols[:, constant]] = -1
-        own = target == np.arange(self.size)  # the columns that stay, in order
+        own = target == np.arange(self.size)  # the columns that stay, in order …
+        own[first] = False
         index = np.cumsum(own) - 1
+        index[first] = np.count_nonzero(own) + np.arange(len(constant))  # … then the constant states'
         return np.where(target >= 0, index[np.maximum(target, 0)], -1)
 
     def _reduction(self) -> sp.csr_matrix:
