@@ -55,7 +55,7 @@ import scipy.sparse as sp
 
 from ..errors import BackendError, QdframeError
 from .base import Direction, DirectionSolver, OptionError, number_rule
-from .kkt import KKTSolver, solve_kkt
+from .kkt import Bordered, KKTSolver, solve_kkt
 from .linearized_system import LinearizedSystem, Skeleton
 from .step_qp import (KKT_TOL, ActiveSetStep, SparseQP, StepQPSolver, StepSolution, make_step_qp,
                       step_qp_expected)
@@ -332,7 +332,7 @@ class ActiveSetIteration:
         else:
             g_cols = y_cols
         if A.shape[0]:
-            H = (hessian + lam * (A.T @ A)).tocsc()
+            H = hessian.plus(A, lam) if isinstance(hessian, Bordered) else (hessian + lam * (A.T @ A)).tocsc()
             g = gradient + lam * (A.T @ values[active])
         else:  # no side violated: H as it is (a copy of H is ~150 MB on paper-7.3 at N = 1e5)
             H, g = hessian, gradient.copy()

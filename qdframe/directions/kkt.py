@@ -46,6 +46,8 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -60,6 +62,42 @@ PANEL_SIZE = 1  # SuperLU's panel width (its default 10 costs time and memory on
 DENSE_FACTOR = 10  # a Hessian column with more than this ·√size entries is bordered (_dense_columns) …
 DENSE_MIN = 1000  # … and more than this many
 MAX_BORDER = 16  # at most this many bordered columns (the densest)
+
+
+class Bordered(NamedTuple):
+    """A symmetric H with the columns D (and their rows) apart: H_RR (`inner`, sparse), H_RD
+    (`coupling`, dense, R's rows × |D|) and H_DD (`corner`). Given to :meth:`KKTSolver.solve`,
+    D are its last |D| columns; gauss-newton's reduced H comes so (its constant states)."""
+
+    inner: sp.csc_matrix
+    coupling: np.ndarray
+    corner: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        size = self.inner.shape[0] + self.corner.shape[0]
+        return size, size
+
+    @classmethod
+    def cut(cls, hessian: sp.csc_matrix, dense: np.ndarray) -> "Bordered":
+        """H (CSC) split at its columns `dense`."""
+        keep = np.ones(hessian.shape[0], dtype=bool)
+        keep[dense] = False
+        cut = hessian.shape[0] - dense.size
+        position = None
+        if dense[0] != cut:  # not the last columns: R's renumbered
+            position = np.full(keep.size, -1, dtype=hessian.indices.dtype)
+            position[keep] = np.arange(cut, dtype=position.dtype)
+        columns = hessian[:, dense].toarray()
+        return cls(_without(hessian, keep, position, square=True), columns[keep], columns[dense])
+
+    def plus(self, rows: sp.csr_matrix, weight: float) -> "Bordered":
+        """H + weight·AᵀA, A (`rows`) on the same columns, D last."""
+        cut = self.inner.shape[0]
+        inner = _without(sp.csr_matrix(rows), np.arange(self.shape[0]) < cut, None)
+        outer = rows[:, cut:].toarray()
+        return Bordered((self.inner + weight * (inner.T @ inner)).tocsc(), self.coupling + weight * (inner.T @ outer),
+                        self.corner + weight * (outer.T @ outer))
 
 
 class KKTSolver:
@@ -83,52 +121,50 @@ class KKTSolver:
     def solve(self, hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarray,
               rhs: np.ndarray | None = None, soft: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         size, count = hessian.shape[0], constraints.shape[0]
-        hessian, constraints = sp.csc_matrix(hessian), sp.csr_matrix(constraints)
+        constraints = sp.csr_matrix(constraints)
         right = np.concatenate([-gradient, np.zeros(count) if rhs is None else rhs])
-        dense = _dense_columns(hessian)
+        if isinstance(hessian, Bordered):  # bordered by the caller: its last columns
+            dense = np.arange(hessian.inner.shape[0], size)
+        else:
+            hessian = sp.csc_matrix(hessian)
+            dense = _dense_columns(hessian)
         if not dense.size:
             solution = self._factored(hessian, constraints, soft)(right)
         else:
-            solution = self._bordered(hessian, constraints, soft, right, dense)
+            bordered = hessian if isinstance(hessian, Bordered) else Bordered.cut(hessian, dense)
+            solution = self._bordered(bordered, constraints, soft, right, dense)
         if not np.all(np.isfinite(solution)):
             raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
         return solution[:size], solution[size:]
 
-    def _bordered(self, hessian: sp.csc_matrix, constraints: sp.csr_matrix, soft: np.ndarray | None,
+    def _bordered(self, hessian: "Bordered", constraints: sp.csr_matrix, soft: np.ndarray | None,
                   right: np.ndarray, dense: np.ndarray) -> np.ndarray:
         """The system with the dense columns D (and their rows) bordered: K_RR factored as any
         system, then the Schur complement S = K_DD − K_DRK_RR⁻¹K_RD (|D| × |D|) solved densely.
-        K_RR is cut from H and C by masks on their index arrays (`_without`), and
-        K_RR⁻¹[right | K_RD] is one solve with |D| + 1 right-hand sides. Where D are H's last
-        columns (gauss-newton puts the constant states there) R's keep their numbers."""
-        size, count = hessian.shape[0], constraints.shape[0]
+        H comes split (:class:`Bordered`), C is cut by a mask on its index array (`_without`),
+        and K_RR⁻¹[right | K_RD] is one solve with |D| + 1 right-hand sides. Where D are the
+        last columns (gauss-newton puts the constant states there) R's keep their numbers."""
+        size, count = right.size - constraints.shape[0], constraints.shape[0]
         keep = np.ones(size, dtype=bool)
         keep[dense] = False
         cut = size - dense.size
         if dense[0] == cut:  # D trailing: R's rows of K are K's without rows cut … size − 1
             position, inner = None, None
         else:
-            kept = np.flatnonzero(keep)
-            position = np.full(size, -1, dtype=hessian.indices.dtype)  # each column's place among R's
-            position[kept] = np.arange(cut, dtype=position.dtype)
-            inner = np.concatenate([kept, size + np.arange(count)])
-        columns_d = hessian[:, dense].toarray()  # H's D columns: K_RD's H rows and K_DD
-        h_rr = _without(hessian, keep, position, square=True)
+            position = np.full(size, -1, dtype=constraints.indices.dtype)  # each column's place among R's
+            position[keep] = np.arange(cut, dtype=position.dtype)
+            inner = np.concatenate([np.flatnonzero(keep), size + np.arange(count)])
         c_rr = _without(constraints, keep, position)
         stacked = np.zeros((cut + count, 1 + dense.size), order="F")  # [right_R | K_RD]: H's rows of R, then C's
-        if inner is None:
-            stacked[:cut, 0], stacked[cut:, 0] = right[:cut], right[size:]
-            stacked[:cut, 1:] = columns_d[:cut]
-        else:
-            stacked[:, 0] = right[inner]
-            stacked[:cut, 1:] = columns_d[kept]
+        stacked[:, 0] = right[inner] if inner is not None else np.concatenate([right[:cut], right[size:]])
+        stacked[:cut, 1:] = hessian.coupling
         if c_rr.nnz < constraints.nnz:  # C has entries in D
             stacked[cut:, 1:] = constraints[:, dense].toarray()
         coupling = stacked[:, 1:]
-        solve = self._factored(h_rr, c_rr, soft)
+        solve = self._factored(hessian.inner, c_rr, soft)
         both = solve(stacked)
         first, through = both[:, 0], both[:, 1:]
-        schur = columns_d[dense] - coupling.T @ through
+        schur = hessian.corner - coupling.T @ through
         try:
             border = np.linalg.solve(schur, right[dense] - coupling.T @ first)
         except np.linalg.LinAlgError as exc:

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
+from .kkt import Bordered
 from .sparse_rows import RowBlocks
 
 if TYPE_CHECKING:
@@ -48,6 +49,7 @@ class Skeleton:
             ((0, n), (n, n), (2 * n, m), (2 * n + m, n)))  # (N, count) each
         self.y_cols = _frozen(np.concatenate([self.x_cols, self.u_cols], axis=1))
         self.constraints = _constraints(self)
+        self.constant = 0  # how many constant states (:meth:`_constant_columns`)
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
         self.live_constraints: tuple[sp.csr_matrix, np.ndarray] | None = None  # E·R's rows that kept entries
@@ -71,6 +73,7 @@ class Skeleton:
         target[self.Z_cols[:, constant]] = -1
         own = target == np.arange(self.size)  # the columns that stay, in order …
         own[first] = False
+        self.constant = len(constant)
         index = np.cumsum(own) - 1
         index[first] = np.count_nonzero(own) + np.arange(len(constant))  # … then the constant states'
         return np.where(target >= 0, index[np.maximum(target, 0)], -1)
@@ -80,6 +83,24 @@ class Skeleton:
         kept = self.columns >= 0
         return sp.csr_matrix((np.ones(int(kept.sum())), (np.flatnonzero(kept), self.columns[kept])),
                              shape=(self.size, int(self.columns.max()) + 1))
+
+    def split(self, matrix: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray]:
+        """matrix · R in two parts, by its column indices mapped (no product): the columns other
+        than the constant states' (sparse: the rest keep their order, so stay sorted) and the
+        constant states' (dense, rows × their count: each a sum over the nodes)."""
+        cut = self.R.shape[1] - self.constant
+        target = self.columns[matrix.indices].astype(matrix.indices.dtype, copy=False)
+        inner = target.astype(np.uint64 if target.itemsize == 8 else np.uint32, copy=False) < cut  # −1 (none) is large
+        running = np.zeros(inner.size + 1, dtype=matrix.indptr.dtype)
+        np.cumsum(inner, out=running[1:])
+        rows = matrix.shape[0]
+        sparse = sp.csr_matrix((matrix.data[inner], target[inner], running[matrix.indptr]), shape=(rows, cut))
+        sparse.has_sorted_indices = True
+        outer = np.flatnonzero(target >= cut)
+        row_of = np.repeat(np.arange(rows, dtype=matrix.indptr.dtype), np.diff(matrix.indptr))[outer]
+        dense = np.bincount(row_of * self.constant + (target[outer] - cut), weights=matrix.data[outer],
+                            minlength=rows * self.constant).reshape(rows, self.constant)
+        return sparse, dense
 
     def reduced(self, matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
         """matrix · R (R: the columns' map of :meth:`_constant_columns`), explicit zeros kept, and
@@ -245,12 +266,17 @@ class LinearizedSystem:
         weights[:, : 2 * self.n + self.m] = self.f.weights[:, None]
         return weights.ravel()
 
-    def hessian(self, mu: float, reduced: bool) -> sp.csc_matrix:
-        """λJᵀJ + μW, on the constant states' reduced columns (R) if `reduced` (and there are any)."""
+    def hessian(self, mu: float, reduced: bool) -> sp.csc_matrix | Bordered:
+        """λJᵀJ + μW; if `reduced` (and there are constant states) on their reduced columns (R),
+        bordered: the constant states' columns (the last, each dense) apart (:class:`.kkt.Bordered`)."""
         J, lam = self.jacobian, self.penalty
-        JR, damping = ((J @ self.R).tocsr(), self.R.T @ self.damping()) if reduced and self.R is not None else (
-            J, self.damping())
-        return (lam * (JR.T @ JR) + mu * sp.diags(damping)).tocsc()
+        if not reduced or self.R is None:
+            return (lam * (J.T @ J) + mu * sp.diags(self.damping())).tocsc()
+        inner, outer = self.skeleton.split(J)
+        damping = self.R.T @ self.damping()
+        cut = inner.shape[1]
+        return Bordered((lam * (inner.T @ inner) + mu * sp.diags(damping[:cut])).tocsc(), lam * (inner.T @ outer),
+                        lam * (outer.T @ outer) + mu * np.diag(damping[cut:]))
 
     def hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """The one-sided residuals of φ: rows √w_k·(ℓ_side + ∇ℓ_side·d) for every block,
