@@ -52,6 +52,11 @@ class Skeleton:
         self.constant = 0  # how many constant states (:meth:`_constant_columns`)
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
+        self.reduced_damping = None  # R·W: the L² weights (:meth:`LinearizedSystem.damping`) on the reduced columns
+        if self.R is not None:
+            weights = np.zeros((nodes, self.width))
+            weights[:, : 2 * n + m] = functional.weights[:, None]
+            self.reduced_damping = self.R.T @ weights.ravel()
         self.live_constraints: tuple[sp.csr_matrix, np.ndarray] | None = None  # E·R's rows that kept entries
         if self.columns is not None:
             reduced, emptied = self.reduced(self.constraints)
@@ -216,7 +221,11 @@ class LinearizedSystem:
         residuals = []
 
         def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
-            """res: (R,), col/val: (R, E) entries of R new rows."""
+            """res: (R,), col/val: (R, E) entries of R new rows; a column of entries all zero (a
+            piece constant in a variable, a constant state's σ' = 0) is left out before sorting."""
+            live = np.any(val != 0.0, axis=0)
+            if not live.all():
+                col, val = col[:, live], val[:, live]
             rows.add(col, val)
             residuals.append(res)
 
@@ -273,7 +282,7 @@ class LinearizedSystem:
         if not reduced or self.R is None:
             return (lam * (J.T @ J) + mu * sp.diags(self.damping())).tocsc()
         inner, outer = self.skeleton.split(J)
-        damping = self.R.T @ self.damping()
+        damping = self.skeleton.reduced_damping
         cut = inner.shape[1]
         return Bordered((lam * (inner.T @ inner) + mu * sp.diags(damping[:cut])).tocsc(), lam * (inner.T @ outer),
                         lam * (outer.T @ outer) + mu * np.diag(damping[cut:]))
