@@ -232,9 +232,9 @@ class LinearizedSystem:
         consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
         start_free = np.tile(~f.start_given, nodes)  # −√w_k on a free x_i(0) (0 where it is given)
-        add((root_w[:, None] * consistency).ravel(),
-            np.stack([x_cols.ravel(), Z_cols.ravel(), np.tile(x_cols[0], nodes)], axis=1),
-            np.stack([np.repeat(root_w, self.n), -np.repeat(root_w, self.n), -np.repeat(root_w, self.n) * start_free],
+        add((root_w[:, None] * consistency).ravel(),  # columns x_i(t_0) ≤ x_i(t_k) < Z_i(t_k): every row in order
+            np.stack([np.tile(x_cols[0], nodes), x_cols.ravel(), Z_cols.ravel()], axis=1),
+            np.stack([-np.repeat(root_w, self.n) * start_free, np.repeat(root_w, self.n), -np.repeat(root_w, self.n)],
                      axis=1))
         end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
         if end.size:
