@@ -155,11 +155,13 @@ class KKTSolver:
             position[keep] = np.arange(cut, dtype=position.dtype)
             inner = np.concatenate([np.flatnonzero(keep), size + np.arange(count)])
         c_rr = _without(constraints, keep, position)
-        stacked = np.zeros((cut + count, 1 + dense.size), order="F")  # [right_R | K_RD]: H's rows of R, then C's
-        stacked[:, 0] = right[inner] if inner is not None else np.concatenate([right[:cut], right[size:]])
+        stacked = np.empty((cut + count, 1 + dense.size), order="F")  # [right_R | K_RD]: H's rows of R, then C's
+        if inner is None:
+            stacked[:cut, 0], stacked[cut:, 0] = right[:cut], right[size:]
+        else:
+            stacked[:, 0] = right[inner]
         stacked[:cut, 1:] = hessian.coupling
-        if c_rr.nnz < constraints.nnz:  # C has entries in D
-            stacked[cut:, 1:] = constraints[:, dense].toarray()
+        stacked[cut:, 1:] = constraints[:, dense].toarray() if c_rr.nnz < constraints.nnz else 0.0  # C's entries in D
         coupling = stacked[:, 1:]
         solve = self._factored(hessian.inner, c_rr, soft)
         both = solve(stacked)
