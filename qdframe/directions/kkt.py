@@ -34,10 +34,10 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   of the same pattern, 3.4e7 under a fresh COLAMD (4.5 s against 0.09 s). Such columns
   (`_dense_columns`) are bordered instead: the rest K_RR is factored as above (banded),
   and the |D| × |D| Schur complement K_DD − K_DR·K_RR⁻¹·K_RD is solved densely: one
-  solve with |D| + 1 right-hand sides of one factorization. K_RR is cut from H and C by
-  masks on their index arrays (`_without`: no COO round trip, no sort), and the right-hand
-  sides are permuted a column at a time (`_permuted_solve`): at N = 1e5 the bordering
-  costs ~0.05 s over the same system without the column, down from ~0.3 s.
+  solve with |D| + 1 right-hand sides of one factorization. gauss-newton hands H over
+  split (:class:`Bordered`, its constant states last); a whole H is split here
+  (`Bordered.cut`); C is cut by a mask on its index array (`_without`: no COO round trip,
+  no sort), and the right-hand sides are permuted a column at a time (`_permuted_solve`).
 * **One column per panel.** SuperLU's panels (`PANEL_SIZE` columns updated together, a
   dense work array of panel × rows) pay on wide dense fronts; these systems' columns are
   short, and on the paper's examples a panel of one column factors faster and needs less
