@@ -89,6 +89,14 @@ class Bound:
         return float(value)
 
 
+def _per_node(function: Callable[[np.ndarray], np.ndarray], sigma: np.ndarray) -> np.ndarray:
+    """function(σ) at every node, evaluated once where σ is the same at every node (a constant
+    state on gauss-newton's iterates: its steps move it alike everywhere), else node by node."""
+    if sigma.size > 1 and np.all(sigma == sigma[0]):
+        return np.full(sigma.shape, function(sigma[:1])[0])
+    return function(sigma)
+
+
 def restated(model: InclusionModel, free_T: bool | None, parameters: Mapping[str, float] | None) -> InclusionModel:
     """A copy of `model` with T free (True) or fixed (False) and the guesses of some parameters."""
     out = copy.copy(model)
@@ -204,7 +212,7 @@ class Unknowns(InclusionModel):
     def _user(self, y: np.ndarray) -> np.ndarray:
         """The model's own argument (x, p, u) (or (x, p) for the surface) from (x, σ_p, σ_T, u)."""
         n, q = self.n, self.q
-        parts = [y[:, :n]] + [bound.value(y[:, n + i])[:, None] for i, bound in enumerate(self.bounds)]
+        parts = [y[:, :n]] + [_per_node(bound.value, y[:, n + i])[:, None] for i, bound in enumerate(self.bounds)]
         if self.fixed and self.values.size:
             parts.append(np.broadcast_to(self.values, (y.shape[0], self.values.size)))
         parts.append(y[:, n + q + self.scaled:])
@@ -218,7 +226,7 @@ class Unknowns(InclusionModel):
         shape = (grad.shape[0],) + (1,) * (grad.ndim - 2)
         parts = [grad[..., :n]]
         for i, bound in enumerate(self.bounds):
-            parts.append(grad[..., n + i: n + i + 1] * bound.slope(y[:, n + i]).reshape(shape + (1,)))
+            parts.append(grad[..., n + i: n + i + 1] * _per_node(bound.slope, y[:, n + i]).reshape(shape + (1,)))
         if self.scaled:
             parts.append(np.zeros(grad.shape[:-1] + (1,)))
         parts.append(grad[..., n + q + (self.values.size if self.fixed else 0):])
@@ -227,7 +235,7 @@ class Unknowns(InclusionModel):
     def _T(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """T and dT/dσ_T per node."""
         sigma = y[:, self.n + self.q]
-        return self.time_bound.value(sigma), self.time_bound.slope(sigma)
+        return _per_node(self.time_bound.value, sigma), _per_node(self.time_bound.slope, sigma)
 
     def _times_T(self, y: np.ndarray, value: np.ndarray, grad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """T·v and its gradient (the σ_T column dT/dσ_T·v) where T is free; v unchanged if not."""

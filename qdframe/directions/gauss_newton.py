@@ -55,8 +55,8 @@ import scipy.sparse as sp
 
 from ..errors import BackendError, QdframeError
 from .base import Direction, DirectionSolver, OptionError, number_rule
-from .kkt import KKTSolver, solve_kkt
-from .linearized_system import LinearizedSystem
+from .kkt import Bordered, KKTSolver, solve_kkt
+from .linearized_system import LinearizedSystem, Skeleton
 from .step_qp import (KKT_TOL, ActiveSetStep, SparseQP, StepQPSolver, StepSolution, make_step_qp,
                       step_qp_expected)
 
@@ -126,7 +126,10 @@ class GaussNewton(DirectionSolver):
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)
         self._adapt(xi, value)
-        system = LinearizedSystem(functional, xi, delta)
+        skeleton = self._state.get("skeleton")
+        if skeleton is None or skeleton.f is not functional:  # the ξ-independent part: once per functional
+            skeleton = self._state["skeleton"] = Skeleton(functional)
+        system = LinearizedSystem(functional, xi, delta, value, skeleton)
         solver = Step(system, self._state.setdefault("kkt", KKTSolver()))
         found = solver.solve(self._state["mu"], warm=self._state.get("active_set"), backend=self._state["backend"],
                              polish=self.qp_polish, previous=self._state.get("qp_solution"))
@@ -329,7 +332,7 @@ class ActiveSetIteration:
         else:
             g_cols = y_cols
         if A.shape[0]:
-            H = (hessian + lam * (A.T @ A)).tocsc()
+            H = hessian.plus(A, lam) if isinstance(hessian, Bordered) else (hessian + lam * (A.T @ A)).tocsc()
             g = gradient + lam * (A.T @ values[active])
         else:  # no side violated: H as it is (a copy of H is ~150 MB on paper-7.3 at N = 1e5)
             H, g = hessian, gradient.copy()
@@ -351,10 +354,9 @@ class ActiveSetIteration:
             rhs.append(np.where(tied, piece_values[every, ref][:, None] - piece_values[every[:, None], other], 0.0).ravel())
             softness.append(np.where(tied, TIE_SOFTNESS, 1.0).ravel())
             others.append((other, tied, ref))
-        C = sp.vstack([E, *rows], format="csr") if rows else E
         with np.errstate(all="ignore"):
             soft = np.concatenate([np.zeros(E.shape[0]), *softness])
-            d, nu = self._solve_kkt(H, C, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft)
+            d, nu = self._solve_kkt(H, rows, g, np.concatenate([np.zeros(E.shape[0]), *rhs]), soft)
         thetas, offset = [], E.shape[0]
         for tie, (other, tied, ref) in zip(ties, others):
             theta = np.zeros(tie.shape)
@@ -365,18 +367,19 @@ class ActiveSetIteration:
             thetas.append(theta)
         return d, thetas
 
-    def _solve_kkt(self, H: sp.spmatrix, C: sp.spmatrix, g: np.ndarray, rhs: np.ndarray,
+    def _solve_kkt(self, H: sp.spmatrix, ties: list[sp.csr_matrix], g: np.ndarray, rhs: np.ndarray,
                    soft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """d and ν of the KKT system. With constant states H and g are on the reduced columns
-        (:meth:`LinearizedSystem.reduced`), C on all: C is reduced here, and d comes back on
-        every column (a constant state's x_i the same at every node, its z_i and Z_i 0)."""
-        R = self.system.R
+        """d and ν of the KKT system with C = [E; ties]. With constant states H and g are on the
+        reduced columns (:meth:`LinearizedSystem.reduced`), the ties on all: C is reduced here (E's
+        reduction kept from step to step), and d comes back on every column (a constant state's
+        x_i the same at every node, its z_i and Z_i 0)."""
+        R, E = self.system.R, self.system.constraints
         if R is None:
+            C = sp.vstack([E, *ties], format="csr") if ties else E
             return solve_kkt(H, C, g, rhs, soft, solver=self.kkt)
-        Cr, emptied = self.system.reduced(C)
-        live = ~emptied
-        d, nu = solve_kkt(H, Cr[live], g, rhs[live], soft[live], solver=self.kkt)
-        multipliers = np.zeros(C.shape[0])
+        Cr, live = self.system.reduced(sp.vstack(ties, format="csr") if ties else None)
+        d, nu = solve_kkt(H, Cr, g, rhs[live], soft[live], solver=self.kkt)
+        multipliers = np.zeros(live.size)
         multipliers[live] = nu
         return R @ d, multipliers
 

@@ -33,8 +33,11 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   with one unknown coefficient at N = 10001 one system filled 1.1e6 entries and the next,
   of the same pattern, 3.4e7 under a fresh COLAMD (4.5 s against 0.09 s). Such columns
   (`_dense_columns`) are bordered instead: the rest K_RR is factored as above (banded),
-  and the |D| × |D| Schur complement K_DD − K_DR·K_RR⁻¹·K_RD is solved densely, |D| + 1
-  solves with one factorization.
+  and the |D| × |D| Schur complement K_DD − K_DR·K_RR⁻¹·K_RD is solved densely: one
+  solve with |D| + 1 right-hand sides of one factorization. gauss-newton hands H over
+  split (:class:`Bordered`, its constant states last); a whole H is split here
+  (`Bordered.cut`); C is cut by a mask on its index array (`_without`: no COO round trip,
+  no sort), and the right-hand sides are permuted a column at a time (`_permuted_solve`).
 * **One column per panel.** SuperLU's panels (`PANEL_SIZE` columns updated together, a
   dense work array of panel × rows) pay on wide dense fronts; these systems' columns are
   short, and on the paper's examples a panel of one column factors faster and needs less
@@ -42,6 +45,8 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -59,6 +64,42 @@ DENSE_MIN = 1000  # … and more than this many
 MAX_BORDER = 16  # at most this many bordered columns (the densest)
 
 
+class Bordered(NamedTuple):
+    """A symmetric H with the columns D (and their rows) apart: H_RR (`inner`, sparse), H_RD
+    (`coupling`, dense, R's rows × |D|) and H_DD (`corner`). Given to :meth:`KKTSolver.solve`,
+    D are its last |D| columns; gauss-newton's reduced H comes so (its constant states)."""
+
+    inner: sp.csc_matrix
+    coupling: np.ndarray
+    corner: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        size = self.inner.shape[0] + self.corner.shape[0]
+        return size, size
+
+    @classmethod
+    def cut(cls, hessian: sp.csc_matrix, dense: np.ndarray) -> "Bordered":
+        """H (CSC) split at its columns `dense`."""
+        keep = np.ones(hessian.shape[0], dtype=bool)
+        keep[dense] = False
+        cut = hessian.shape[0] - dense.size
+        position = None
+        if dense[0] != cut:  # not the last columns: R's renumbered
+            position = np.full(keep.size, -1, dtype=hessian.indices.dtype)
+            position[keep] = np.arange(cut, dtype=position.dtype)
+        columns = hessian[:, dense].toarray()
+        return cls(_without(hessian, keep, position, square=True), columns[keep], columns[dense])
+
+    def plus(self, rows: sp.csr_matrix, weight: float) -> "Bordered":
+        """H + weight·AᵀA, A (`rows`) on the same columns, D last."""
+        cut = self.inner.shape[0]
+        inner = _without(sp.csr_matrix(rows), np.arange(self.shape[0]) < cut, None)
+        outer = rows[:, cut:].toarray()
+        return Bordered((self.inner + weight * (inner.T @ inner)).tocsc(), self.coupling + weight * (inner.T @ outer),
+                        self.corner + weight * (outer.T @ outer))
+
+
 class KKTSolver:
     """Factors the KKT systems of one solve, reusing the symbolic analysis between them.
 
@@ -71,6 +112,7 @@ class KKTSolver:
         self._key: tuple | None = None
         self._rows: np.ndarray | None = None  # position of each row of K in the matched matrix
         self._order: np.ndarray | None = None  # the column (and row) order of the matched matrix
+        self._gather: np.ndarray | None = None  # rows[order]: the row of K at each place of the ordered matrix
         self._factor_nnz = 0
         self._reuse = True  # False once a reused order filled in past REANALYSE_GROWTH
         self.analyses = 0  # how many fill-reducing orders were computed (for tests and benchmarks)
@@ -79,55 +121,62 @@ class KKTSolver:
     def solve(self, hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarray,
               rhs: np.ndarray | None = None, soft: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         size, count = hessian.shape[0], constraints.shape[0]
-        hessian, constraints = sp.csc_matrix(hessian), sp.csr_matrix(constraints)
+        constraints = sp.csr_matrix(constraints)
         right = np.concatenate([-gradient, np.zeros(count) if rhs is None else rhs])
-        dense = _dense_columns(hessian)
+        if isinstance(hessian, Bordered):  # bordered by the caller: its last columns
+            dense = np.arange(hessian.inner.shape[0], size)
+        else:
+            hessian = sp.csc_matrix(hessian)
+            dense = _dense_columns(hessian)
         if not dense.size:
             solution = self._factored(hessian, constraints, soft)(right)
         else:
-            solution = self._bordered(hessian, constraints, soft, right, dense)
+            bordered = hessian if isinstance(hessian, Bordered) else Bordered.cut(hessian, dense)
+            solution = self._bordered(bordered, constraints, soft, right, dense)
         if not np.all(np.isfinite(solution)):
             raise BackendError("direction 'gauss-newton': the sparse KKT solve returned non-finite values")
         return solution[:size], solution[size:]
 
-    def _bordered(self, hessian: sp.csc_matrix, constraints: sp.csr_matrix, soft: np.ndarray | None,
+    def _bordered(self, hessian: "Bordered", constraints: sp.csr_matrix, soft: np.ndarray | None,
                   right: np.ndarray, dense: np.ndarray) -> np.ndarray:
         """The system with the dense columns D (and their rows) bordered: K_RR factored as any
-        system, then the Schur complement S = K_DD − K_DRK_RR⁻¹K_RD (|D| × |D|) solved densely."""
-        size, count = hessian.shape[0], constraints.shape[0]
-        position = np.full(size, -1)  # each column's place among R's (−1: in D)
+        system, then the Schur complement S = K_DD − K_DRK_RR⁻¹K_RD (|D| × |D|) solved densely.
+        H comes split (:class:`Bordered`), C is cut by a mask on its index array (`_without`),
+        and K_RR⁻¹[right | K_RD] is one solve with |D| + 1 right-hand sides. Where D are the
+        last columns (gauss-newton puts the constant states there) R's keep their numbers."""
+        size, count = right.size - constraints.shape[0], constraints.shape[0]
         keep = np.ones(size, dtype=bool)
         keep[dense] = False
-        kept = np.flatnonzero(keep)
-        position[kept] = np.arange(kept.size)
-        border = np.full(size, -1)
-        border[dense] = np.arange(dense.size)
-        h = hessian.tocoo()
-        row, col = position[h.row], position[h.col]
-        inside = (row >= 0) & (col >= 0)
-        h_rr = sp.csc_matrix((h.data[inside], (row[inside], col[inside])), shape=(kept.size, kept.size))
-        coupling = np.zeros((kept.size + count, dense.size))  # K_RD: H's rows of R, then C's rows
-        across = (row >= 0) & (col < 0)
-        np.add.at(coupling, (row[across], border[h.col[across]]), h.data[across])
-        schur = np.zeros((dense.size, dense.size))
-        corner = (row < 0) & (col < 0)
-        np.add.at(schur, (border[h.row[corner]], border[h.col[corner]]), h.data[corner])
-        c = constraints.tocoo()
-        c_col = position[c.col]
-        inner_c = c_col >= 0
-        c_rr = sp.csr_matrix((c.data[inner_c], (c.row[inner_c], c_col[inner_c])), shape=(count, kept.size))
-        np.add.at(coupling, (kept.size + c.row[~inner_c], border[c.col[~inner_c]]), c.data[~inner_c])
-        inner = np.concatenate([kept, size + np.arange(count)])  # R's rows of K
-        solve = self._factored(h_rr, c_rr, soft)
-        both = solve(np.column_stack([right[inner], coupling]))
+        cut = size - dense.size
+        if dense[0] == cut:  # D trailing: R's rows of K are K's without rows cut … size − 1
+            position, inner = None, None
+        else:
+            position = np.full(size, -1, dtype=constraints.indices.dtype)  # each column's place among R's
+            position[keep] = np.arange(cut, dtype=position.dtype)
+            inner = np.concatenate([np.flatnonzero(keep), size + np.arange(count)])
+        c_rr = _without(constraints, keep, position)
+        stacked = np.empty((cut + count, 1 + dense.size), order="F")  # [right_R | K_RD]: H's rows of R, then C's
+        if inner is None:
+            stacked[:cut, 0], stacked[cut:, 0] = right[:cut], right[size:]
+        else:
+            stacked[:, 0] = right[inner]
+        stacked[:cut, 1:] = hessian.coupling
+        stacked[cut:, 1:] = constraints[:, dense].toarray() if c_rr.nnz < constraints.nnz else 0.0  # C's entries in D
+        coupling = stacked[:, 1:]
+        solve = self._factored(hessian.inner, c_rr, soft)
+        both = solve(stacked)
         first, through = both[:, 0], both[:, 1:]
-        schur -= coupling.T @ through
+        schur = hessian.corner - coupling.T @ through
         try:
             border = np.linalg.solve(schur, right[dense] - coupling.T @ first)
         except np.linalg.LinAlgError as exc:
             raise BackendError(f"direction 'gauss-newton': the bordered KKT solve failed ({exc})") from exc
+        inside = first - through @ border
         solution = np.empty(right.size)
-        solution[inner] = first - through @ border
+        if inner is None:
+            solution[:cut], solution[size:] = inside[:cut], inside[cut:]
+        else:
+            solution[inner] = inside
         solution[dense] = border
         return solution
 
@@ -139,27 +188,22 @@ class KKTSolver:
             self._key = (size, constraints.indptr.copy(), constraints.indices.copy())
             self._rows, self._order = _matching(constraints, size), None
         rows = self._rows  # an involution: each matched pair trades places, so it is its own inverse
-        order = self._order
+        order, gather = self._order, self._gather
         kkt = _assemble(hessian, constraints, rows, order, soft)
         self.factorizations += 1
         if order is None:  # the analysis: SuperLU's COLAMD on the matched matrix, kept for later systems
             factor = _factor(kkt, "COLAMD")
             self._order = np.argsort(factor.perm_c) if self._reuse else None
+            self._gather = None if self._order is None else rows[self._order]  # K's row at each place
             self._factor_nnz = factor.nnz  # L + U (not .L, .U: those build copies)
             self.analyses += 1
-            return lambda right: factor.solve(right[rows])
+            return lambda right: _permuted_solve(factor, right, rows, None)
         factor = _factor(kkt, "NATURAL")
         if factor.nnz > REANALYSE_GROWTH * self._factor_nnz:
             # the pivots left the analysed order (the values, not the pattern, moved): reusing it
             # again would fill in as much, so every later system of this solve is analysed afresh
             self._order, self._reuse = None, False
-
-        def solve(right: np.ndarray) -> np.ndarray:
-            solution = np.empty(right.shape)
-            solution[order] = factor.solve(right[rows[order]])
-            return solution
-
-        return solve
+        return lambda right: _permuted_solve(factor, right, gather, order)
 
     def _same(self, size: int, constraints: sp.csr_matrix) -> bool:
         """Whether the analysis at hand is of this shape and constraint pattern."""
@@ -210,6 +254,46 @@ def _matching(constraints: sp.csr_matrix, size: int) -> np.ndarray:
     rows[size + matched] = match[matched]
     rows[match[matched]] = size + matched
     return rows
+
+
+def _permuted_solve(factor, right: np.ndarray, gather: np.ndarray, order: np.ndarray | None) -> np.ndarray:
+    """K⁻¹·right from the factors of K with its rows at `gather` and then, given an order, rows
+    and columns in that order (:func:`_assemble`): right's rows gathered, the solution's
+    scattered back to `order`, one column at a time (a 2-D fancy index is several times slower)."""
+    columns = right.reshape(right.shape[0], -1)
+    permuted = np.empty(columns.shape, order="F")
+    for j in range(columns.shape[1]):
+        np.take(columns[:, j], gather, out=permuted[:, j])
+    solved = factor.solve(permuted if right.ndim == 2 else permuted[:, 0]).reshape(columns.shape, order="F")
+    if order is not None:
+        solution = np.empty(columns.shape, order="F")
+        for j in range(columns.shape[1]):
+            solution[order, j] = solved[:, j]
+        solved = solution
+    return solved if right.ndim == 2 else solved[:, 0]
+
+
+def _without(matrix: sp.spmatrix, keep: np.ndarray, position: np.ndarray | None, square: bool = False) -> sp.spmatrix:
+    """A CSR matrix's columns `keep`, or (`square`) a symmetric CSC matrix's rows and columns
+    `keep`, renumbered by `position` (None: the dropped ones are the last, the rest keep their
+    numbers): the index array masked, the pointers read off the mask's running count (indices
+    stay sorted). A CSR matrix with no entry to drop comes back with its own arrays."""
+    cut = int(np.count_nonzero(keep))
+    inside = matrix.indices < cut if position is None else keep[matrix.indices]
+    for column in np.flatnonzero(~keep) if square else ():  # the few D columns: all their entries out
+        inside[matrix.indptr[column]: matrix.indptr[column + 1]] = False
+    if not square and position is None and inside.all():
+        return sp.csr_matrix((matrix.data, matrix.indices, matrix.indptr), shape=(matrix.shape[0], cut))
+    running = np.zeros(inside.size + 1, dtype=matrix.indptr.dtype)
+    np.cumsum(inside, out=running[1:])
+    indices = matrix.indices[inside]
+    if position is not None:
+        indices = position[indices]
+    if not square:  # CSR: every row, some columns
+        return sp.csr_matrix((matrix.data[inside], indices, running[matrix.indptr]), shape=(matrix.shape[0], cut))
+    kept = np.flatnonzero(keep)
+    indptr = running[matrix.indptr[np.concatenate([[0], kept + 1])]]
+    return sp.csc_matrix((matrix.data[inside], indices, indptr), shape=(cut, cut))
 
 
 def _assemble(hessian: sp.spmatrix, constraints: sp.csr_matrix, rows: np.ndarray,

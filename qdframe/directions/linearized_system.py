@@ -12,6 +12,8 @@ Z = ∫_0^t z), :class:`LinearizedSystem` holds what the step's model reads:
 * the columns' map R of the constant states (one unknown x_i(t_0) for every node);
 
 and the model's value at a step d: its predicted decrease and the objective's slope along d.
+What does not depend on ξ (the columns, E, R and E on the reduced columns) is a
+:class:`Skeleton`, built once per functional and shared by the steps of a solve.
 """
 
 from __future__ import annotations
@@ -21,84 +23,64 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
+from .kkt import Bordered
 from .sparse_rows import RowBlocks
 
 if TYPE_CHECKING:
     from ..functional import Functional
 
 
-class LinearizedSystem:
-    """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node."""
+class Skeleton:
+    """The ξ-independent part of the linearized system of one functional: each variable's
+    columns at every node, E, and the constant states' columns map R with E on the reduced
+    columns (:meth:`LinearizedSystem.reduced`). gauss-newton keeps it between the steps of a
+    solve (at N = 1e5 E and its reduction cost ~0.1 s a step to rebuild)."""
 
-    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float) -> None:
+    def __init__(self, functional: "Functional") -> None:
         self.f = functional
         n, m = functional.n, functional.m + functional.p  # u and the selections λ: both enter y
         nodes = functional.grid.nodes
         self.n, self.m, self.nodes = n, m, nodes
         self.width = 3 * n + m  # per node: x, z, u, λ, Z
         self.size = nodes * self.width
-        self.delta = delta
-        self.penalty = functional.penalty
-        self.value = functional.objective(xi)
-        blocks = functional.distance_sides(xi)
-        self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
-        # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
-        self.residual, self.jacobian = self._least_squares(xi, [block for block in blocks if block.equation])
-        del blocks
-        self.constraints = self._constraints()
-        # the cost's max- and min-groups: (values (N, q), gradients (N, q, n + m)) each, a 0
-        # column for each selection λ (the cost is a function of (x, u) alone)
-        self.max_groups, self.min_groups = ([[(v, self._widened(g)) for v, g in groups]
-                                             for groups in functional.cost_pieces(xi)]
-                                            if functional.cost is not None else ([], []))
+        base = np.arange(nodes)[:, None] * self.width
+        self.x_cols, self.z_cols, self.u_cols, self.Z_cols = (
+            _frozen(base + start + np.arange(count)[None, :]) for start, count in
+            ((0, n), (n, n), (2 * n, m), (2 * n + m, n)))  # (N, count) each
+        self.y_cols = _frozen(np.concatenate([self.x_cols, self.u_cols], axis=1))
+        self.constraints = _constraints(self)
+        self.constant = 0  # how many constant states (:meth:`_constant_columns`)
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
-        self._hinge_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # :meth:`hinges`
-        self._min_linear: np.ndarray | None = None  # :meth:`min_linear`
-
-    def _widened(self, gradients: np.ndarray) -> np.ndarray:
-        """Gradients in (x, u) padded with zeros to y = (x, u, λ)."""
-        missing = self.n + self.m - gradients.shape[-1]
-        return np.concatenate([gradients, np.zeros(gradients.shape[:-1] + (missing,))], axis=-1) if missing else gradients
-
-    # column indices of each variable at every node: (N, width)
-    def _columns(self, start: int, count: int) -> np.ndarray:
-        base = np.arange(self.nodes)[:, None] * self.width
-        return base + start + np.arange(count)[None, :]
-
-    def x_cols(self) -> np.ndarray:
-        return self._columns(0, self.n)
-
-    def z_cols(self) -> np.ndarray:
-        return self._columns(self.n, self.n)
-
-    def u_cols(self) -> np.ndarray:
-        return self._columns(2 * self.n, self.m)
-
-    def Z_cols(self) -> np.ndarray:
-        return self._columns(2 * self.n + self.m, self.n)
-
-    def y_cols(self) -> np.ndarray:
-        return np.concatenate([self.x_cols(), self.u_cols()], axis=1)
-
-    def unknowns_step(self, step: np.ndarray) -> np.ndarray:
-        """The step on ξ = [x | z | u] per node (dropping Z)."""
-        return step.reshape(self.nodes, self.width)[:, : 2 * self.n + self.m].copy()
+        self.reduced_damping = None  # R·W: the L² weights (:meth:`LinearizedSystem.damping`) on the reduced columns
+        if self.R is not None:
+            weights = np.zeros((nodes, self.width))
+            weights[:, : 2 * n + m] = functional.weights[:, None]
+            self.reduced_damping = self.R.T @ weights.ravel()
+        self.live_constraints: tuple[sp.csr_matrix, np.ndarray] | None = None  # E·R's rows that kept entries
+        if self.columns is not None:
+            reduced, emptied = self.reduced(self.constraints)
+            self.live_constraints = reduced[~emptied], ~emptied
 
     def _constant_columns(self) -> np.ndarray | None:
         """Where each column of the extended unknowns goes in the KKT systems: a constant state
         (the model's `constant_states`, x_i' = 0: an unknown T or parameter) is one unknown
-        x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states."""
+        x_i(t_0) for every node, its z_i and Z_i none (−1); None without constant states. The
+        constant states' unknowns come last, after the other columns in their order: the KKT
+        solver borders them (dense columns) and cuts them off its trailing rows and columns."""
         constant = [i for i in self.f.model.constant_states if i not in self.f.resolved]
         if not constant:
             return None
         target = np.arange(self.size)
-        x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
-        target[x_cols[:, constant]] = x_cols[0, constant]
-        target[z_cols[:, constant]] = -1
-        target[Z_cols[:, constant]] = -1
-        own = target == np.arange(self.size)  # the columns that stay, in order
+        first = self.x_cols[0, constant]
+        target[self.x_cols[:, constant]] = first
+        target[self.z_cols[:, constant]] = -1
+        target[self.Z_cols[:, constant]] = -1
+        own = target == np.arange(self.size)  # the columns that stay, in order …
+        own[first] = False
+        self.constant = len(constant)
         index = np.cumsum(own) - 1
+        index[first] = np.count_nonzero(own) + np.arange(len(constant))  # … then the constant states'
         return np.where(target >= 0, index[np.maximum(target, 0)], -1)
 
     def _reduction(self) -> sp.csr_matrix:
@@ -106,6 +88,24 @@ class LinearizedSystem:
         kept = self.columns >= 0
         return sp.csr_matrix((np.ones(int(kept.sum())), (np.flatnonzero(kept), self.columns[kept])),
                              shape=(self.size, int(self.columns.max()) + 1))
+
+    def split(self, matrix: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray]:
+        """matrix · R in two parts, by its column indices mapped (no product): the columns other
+        than the constant states' (sparse: the rest keep their order, so stay sorted) and the
+        constant states' (dense, rows × their count: each a sum over the nodes)."""
+        cut = self.R.shape[1] - self.constant
+        target = self.columns[matrix.indices].astype(matrix.indices.dtype, copy=False)
+        inner = target.astype(np.uint64 if target.itemsize == 8 else np.uint32, copy=False) < cut  # −1 (none) is large
+        running = np.zeros(inner.size + 1, dtype=matrix.indptr.dtype)
+        np.cumsum(inner, out=running[1:])
+        rows = matrix.shape[0]
+        sparse = sp.csr_matrix((matrix.data[inner], target[inner], running[matrix.indptr]), shape=(rows, cut))
+        sparse.has_sorted_indices = True
+        outer = np.flatnonzero(target >= cut)
+        row_of = np.repeat(np.arange(rows, dtype=matrix.indptr.dtype), np.diff(matrix.indptr))[outer]
+        dense = np.bincount(row_of * self.constant + (target[outer] - cut), weights=matrix.data[outer],
+                            minlength=rows * self.constant).reshape(rows, self.constant)
+        return sparse, dense
 
     def reduced(self, matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
         """matrix · R (R: the columns' map of :meth:`_constant_columns`), explicit zeros kept, and
@@ -120,6 +120,106 @@ class LinearizedSystem:
         emptied = (np.diff(matrix.indptr) > 0) & (np.bincount(row_of[keep], minlength=rows) == 0)
         return reduced, emptied
 
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False  # shared by the steps of a solve
+    return array
+
+
+def _constraints(skeleton: Skeleton) -> sp.csr_matrix:
+    """E d = 0: dx_0 = 0 where x(t_0) is given, dZ_0 = 0, dz_i = dx_j for resolved states,
+    dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j = 0 (the scheme's rule)."""
+    f, n, nodes = skeleton.f, skeleton.n, skeleton.nodes
+    x_cols, z_cols, Z_cols = skeleton.x_cols, skeleton.z_cols, skeleton.Z_cols
+    rows = RowBlocks(skeleton.size)
+    fixed = np.concatenate([x_cols[0, f.start_given], Z_cols[0]])
+    rows.add(fixed[:, None], np.ones((fixed.size, 1)))
+    for i, j in f.resolved.items():  # dz_i = dx_j at every node
+        rows.add(np.stack([z_cols[:, i], x_cols[:, j]], axis=1), np.broadcast_to([1.0, -1.0], (nodes, 2)))
+    points, base, increments = f.grid.recursion()
+    # one row per point p ≥ 1 and state: dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j, the row p − 1 of the
+    # restricted A padded with zeros to its longest row (a zero entry is left out)
+    increments = sp.csr_matrix(increments)
+    counts = np.diff(increments.indptr)
+    width = int(counts.max(initial=0))
+    place = np.arange(increments.nnz) - np.repeat(increments.indptr[:-1], counts)
+    terms = np.zeros((points.size, width), dtype=increments.indices.dtype)
+    weights = np.zeros((points.size, width))
+    row_of = np.repeat(np.arange(points.size), counts)
+    terms[row_of, place] = increments.indices
+    weights[row_of, place] = -increments.data
+    cols = np.concatenate([Z_cols[points][:, :, None], Z_cols[base][:, :, None],
+                           np.moveaxis(z_cols[terms], 1, 2)], axis=2)  # (points, n, 2 + width)
+    vals = np.concatenate([np.ones((points.size, 1)), -np.ones((points.size, 1)), weights], axis=1)
+    rows.add(cols.reshape(points.size * n, 2 + width), np.repeat(vals, n, axis=0))
+    return rows.matrix()
+
+
+class LinearizedSystem:
+    """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node.
+
+    value: the objective at ξ where the caller has it; skeleton: the functional's
+    :class:`Skeleton` where the caller keeps one (both computed here if None)."""
+
+    def __init__(self, functional: "Functional", xi: np.ndarray, delta: float, value: float | None = None,
+                 skeleton: Skeleton | None = None) -> None:
+        self.f = functional
+        skeleton = skeleton if skeleton is not None else Skeleton(functional)
+        self.skeleton = skeleton
+        self.n, self.m, self.nodes, self.width, self.size = (skeleton.n, skeleton.m, skeleton.nodes, skeleton.width,
+                                                             skeleton.size)
+        self.delta = delta
+        self.penalty = functional.penalty
+        self.value = functional.objective(xi) if value is None else value
+        blocks = functional.distance_sides(xi)
+        self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
+        # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
+        self.residual, self.jacobian = self._least_squares(xi, [block for block in blocks if block.equation])
+        del blocks
+        self.constraints = skeleton.constraints
+        # the cost's max- and min-groups: (values (N, q), gradients (N, q, n + m)) each, a 0
+        # column for each selection λ (the cost is a function of (x, u) alone)
+        self.max_groups, self.min_groups = ([[(v, self._widened(g)) for v, g in groups]
+                                             for groups in functional.cost_pieces(xi)]
+                                            if functional.cost is not None else ([], []))
+        self.columns, self.R = skeleton.columns, skeleton.R
+        self._hinge_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # :meth:`hinges`
+        self._min_linear: np.ndarray | None = None  # :meth:`min_linear`
+
+    def _widened(self, gradients: np.ndarray) -> np.ndarray:
+        """Gradients in (x, u) padded with zeros to y = (x, u, λ)."""
+        missing = self.n + self.m - gradients.shape[-1]
+        return np.concatenate([gradients, np.zeros(gradients.shape[:-1] + (missing,))], axis=-1) if missing else gradients
+
+    # column indices of each variable at every node: (N, count), shared (read-only)
+    def x_cols(self) -> np.ndarray:
+        return self.skeleton.x_cols
+
+    def z_cols(self) -> np.ndarray:
+        return self.skeleton.z_cols
+
+    def u_cols(self) -> np.ndarray:
+        return self.skeleton.u_cols
+
+    def Z_cols(self) -> np.ndarray:
+        return self.skeleton.Z_cols
+
+    def y_cols(self) -> np.ndarray:
+        return self.skeleton.y_cols
+
+    def unknowns_step(self, step: np.ndarray) -> np.ndarray:
+        """The step on ξ = [x | z | u] per node (dropping Z)."""
+        return step.reshape(self.nodes, self.width)[:, : 2 * self.n + self.m].copy()
+
+    def reduced(self, ties: sp.spmatrix | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
+        """C = [E; ties] · R without the rows that lost every entry (:meth:`Skeleton.reduced`), and
+        which rows of C those are not (E's part kept in the skeleton)."""
+        reduced, live = self.skeleton.live_constraints
+        if ties is None or not ties.shape[0]:
+            return reduced, live
+        more, emptied = self.skeleton.reduced(ties)
+        return sp.vstack([reduced, more[~emptied]], format="csr"), np.concatenate([live, ~emptied])
+
     def _least_squares(self, xi: np.ndarray, equations: list) -> tuple[np.ndarray, sp.csr_matrix]:
         """The residuals r and J (one generalized-Jacobian element) of υ, χ, ω, the point
         sets' φ (`equations`) and σ, row blocks in that order."""
@@ -129,16 +229,20 @@ class LinearizedSystem:
         residuals = []
 
         def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
-            """res: (R,), col/val: (R, E) entries of R new rows."""
+            """res: (R,), col/val: (R, E) entries of R new rows; a column of entries all zero (a
+            piece constant in a variable, a constant state's σ' = 0) is left out before sorting."""
+            live = np.any(val != 0.0, axis=0)
+            if not live.all():
+                col, val = col[:, live], val[:, live]
             rows.add(col, val)
             residuals.append(res)
 
         consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
         start_free = np.tile(~f.start_given, nodes)  # −√w_k on a free x_i(0) (0 where it is given)
-        add((root_w[:, None] * consistency).ravel(),
-            np.stack([x_cols.ravel(), Z_cols.ravel(), np.tile(x_cols[0], nodes)], axis=1),
-            np.stack([np.repeat(root_w, self.n), -np.repeat(root_w, self.n), -np.repeat(root_w, self.n) * start_free],
+        add((root_w[:, None] * consistency).ravel(),  # columns x_i(t_0) ≤ x_i(t_k) < Z_i(t_k): every row in order
+            np.stack([np.tile(x_cols[0], nodes), x_cols.ravel(), Z_cols.ravel()], axis=1),
+            np.stack([-np.repeat(root_w, self.n) * start_free, np.repeat(root_w, self.n), -np.repeat(root_w, self.n)],
                      axis=1))
         end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
         if end.size:
@@ -173,48 +277,23 @@ class LinearizedSystem:
             add((root_w[:, None] * r).ravel(), cols.reshape(nodes * f.p, -1), vals.reshape(nodes * f.p, -1))
         return np.concatenate(residuals), rows.matrix()
 
-    def _constraints(self) -> sp.csr_matrix:
-        """E d = 0: dx_0 = 0 where x(t_0) is given, dZ_0 = 0, dz_i = dx_j for resolved states,
-        dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j = 0 (the scheme's rule)."""
-        n = self.n
-        x_cols, z_cols, Z_cols = self.x_cols(), self.z_cols(), self.Z_cols()
-        rows = RowBlocks(self.size)
-        fixed = np.concatenate([x_cols[0, self.f.start_given], Z_cols[0]])
-        rows.add(fixed[:, None], np.ones((fixed.size, 1)))
-        for i, j in self.f.resolved.items():  # dz_i = dx_j at every node
-            rows.add(np.stack([z_cols[:, i], x_cols[:, j]], axis=1),
-                     np.broadcast_to([1.0, -1.0], (self.nodes, 2)))
-        points, base, increments = self.f.grid.recursion()
-        # one row per point p ≥ 1 and state: dZ_p − dZ_{base(p)} − Σ_j A_pj dz_j, the row p − 1 of the
-        # restricted A padded with zeros to its longest row (a zero entry is left out)
-        increments = sp.csr_matrix(increments)
-        counts = np.diff(increments.indptr)
-        width = int(counts.max(initial=0))
-        place = np.arange(increments.nnz) - np.repeat(increments.indptr[:-1], counts)
-        terms = np.zeros((points.size, width), dtype=increments.indices.dtype)
-        weights = np.zeros((points.size, width))
-        row_of = np.repeat(np.arange(points.size), counts)
-        terms[row_of, place] = increments.indices
-        weights[row_of, place] = -increments.data
-        cols = np.concatenate([Z_cols[points][:, :, None], Z_cols[base][:, :, None],
-                               np.moveaxis(z_cols[terms], 1, 2)], axis=2)  # (points, n, 2 + width)
-        vals = np.concatenate([np.ones((points.size, 1)), -np.ones((points.size, 1)), weights], axis=1)
-        rows.add(cols.reshape(points.size * n, 2 + width),
-                 np.repeat(vals, n, axis=0))
-        return rows.matrix()
-
     def damping(self) -> np.ndarray:
         """L² weights w_k on x, z, u (none on Z, which the constraints determine)."""
         weights = np.zeros((self.nodes, self.width))
         weights[:, : 2 * self.n + self.m] = self.f.weights[:, None]
         return weights.ravel()
 
-    def hessian(self, mu: float, reduced: bool) -> sp.csc_matrix:
-        """λJᵀJ + μW, on the constant states' reduced columns (R) if `reduced` (and there are any)."""
+    def hessian(self, mu: float, reduced: bool) -> sp.csc_matrix | Bordered:
+        """λJᵀJ + μW; if `reduced` (and there are constant states) on their reduced columns (R),
+        bordered: the constant states' columns (the last, each dense) apart (:class:`.kkt.Bordered`)."""
         J, lam = self.jacobian, self.penalty
-        JR, damping = ((J @ self.R).tocsr(), self.R.T @ self.damping()) if reduced and self.R is not None else (
-            J, self.damping())
-        return (lam * (JR.T @ JR) + mu * sp.diags(damping)).tocsc()
+        if not reduced or self.R is None:
+            return (lam * (J.T @ J) + mu * sp.diags(self.damping())).tocsc()
+        inner, outer = self.skeleton.split(J)
+        damping = self.skeleton.reduced_damping
+        cut = inner.shape[1]
+        return Bordered((lam * (inner.T @ inner) + mu * sp.diags(damping[:cut])).tocsc(), lam * (inner.T @ outer),
+                        lam * (outer.T @ outer) + mu * np.diag(damping[cut:]))
 
     def hinges(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """The one-sided residuals of φ: rows √w_k·(ℓ_side + ∇ℓ_side·d) for every block,
@@ -275,3 +354,4 @@ class LinearizedSystem:
             active = piece_values >= piece_values.max(axis=1, keepdims=True) - self.delta
             slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
         return slope
+

@@ -142,12 +142,17 @@ def test_dense_columns_are_bordered_and_solve_the_same_system():
     coupling = sp.csr_matrix(column[:, None])
     hessian = (hessian + sp.hstack([coupling, sp.csr_matrix((size, size - 1))])
                + sp.vstack([coupling.T, sp.csr_matrix((size - 1, size))])).tocsc()
-    constraints = constraints[1:]  # x_0 free: only Z_0 = 0 and the recursion
-    rhs = rhs[1:]
+    tie = sp.csr_matrix(([1.0, -2.0], ([0, 0], [0, 4])), shape=(1, size))  # a row on x_0 too (a tie of C in D)
+    constraints = sp.vstack([constraints[1:], tie], format="csr")  # x_0 free: Z_0 = 0, the recursion, the tie
+    rhs = np.append(rhs[1:], 0.5)
     hessian = (hessian + 10 * sp.eye(size)).tocsc()  # positive definite
     assert list(_dense_columns(hessian)) == [0]
-    d, nu = solve_kkt(hessian, constraints, gradient, rhs)
+    last = np.r_[1:size, 0]  # the same system with that column last (where gauss-newton puts a constant state)
+    moved = (hessian[last][:, last].tocsc(), sp.csr_matrix(constraints[:, last]), gradient[last])
+    assert list(_dense_columns(moved[0])) == [size - 1]
     K = sp.bmat([[hessian, constraints.T], [constraints, None]], format="csc")
     reference = spla.spsolve(K, np.concatenate([-gradient, rhs]))
-    assert np.allclose(np.concatenate([d, nu]), reference, rtol=1e-9, atol=1e-10)
-    assert np.allclose(hessian @ d + constraints.T @ nu, -gradient, atol=1e-9)
+    for (H, C, g), back in (((hessian, constraints, gradient), np.arange(size)), (moved, np.argsort(last))):
+        d, nu = solve_kkt(H, C, g, rhs)
+        assert np.allclose(np.concatenate([d[back], nu]), reference, rtol=1e-9, atol=1e-10)
+        assert np.allclose(H @ d + C.T @ nu, -g, atol=1e-9)
