@@ -71,26 +71,25 @@ def boundary_vector(text: str) -> list[float]:
     return values
 
 
-def node_counts(text: str) -> tuple[int, ...]:
-    """Comma-separated node counts ≥ 2."""
+def _counts(text: str, least: int, what: str, example: str) -> tuple[int, ...]:
+    """Comma-separated integers ≥ `least`; `what` and `example` name them in the error."""
     try:
         values = tuple(int(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated node counts like 11,101, got {text!r}") from None
-    if any(v < 2 for v in values):
-        raise argparse.ArgumentTypeError(f"expected node counts ≥ 2, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected comma-separated {what} like {example}, got {text!r}") from None
+    if any(v < least for v in values):
+        raise argparse.ArgumentTypeError(f"expected {what} ≥ {least}, got {text!r}")
     return values
+
+
+def node_counts(text: str) -> tuple[int, ...]:
+    """Comma-separated node counts ≥ 2."""
+    return _counts(text, 2, "node counts", "11,101")
 
 
 def counts(text: str) -> tuple[int, ...]:
     """Comma-separated counts ≥ 1."""
-    try:
-        values = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated counts like 10,20, got {text!r}") from None
-    if any(v < 1 for v in values):
-        raise argparse.ArgumentTypeError(f"expected counts ≥ 1, got {text!r}")
-    return values
+    return _counts(text, 1, "counts", "10,20")
 
 
 def continuation(text: str) -> str | tuple[int, ...]:
