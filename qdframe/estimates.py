@@ -140,13 +140,19 @@ def bisection(functional: Functional, result: SolveResult, resolve: Resolve) -> 
     if companion.status != Status.SOLVED:
         return Estimate(None, None, BISECTION, f"the solve on the bisected grid ({companion.nodes} nodes) ended "
                         f"{companion.status}", companion)
-    grid, model = functional.grid, functional.model
-    # at the user's times and in what the user is given (with a free T: t = s·T, each solve its own T)
-    times = grid.t * model.time_scale(result.x) / model.time_scale(companion.x)
-    difference = model.observed(dense(finer.grid, companion.x, times)) - model.observed(result.x)  # (N, ·)
+    grid = functional.grid
+    difference = observed_difference(functional.model, grid, result.x, finer.grid, companion.x)  # (N, ·)
     value = ESTIMATE_FACTOR * float(np.max(np.abs(difference))) + defects(functional, result) \
         + misplaced_switches(functional, result)
     return Estimate(value, _local(grid, difference, ESTIMATE_FACTOR), BISECTION, "", companion)
+
+
+def observed_difference(model, grid: Grid, x: np.ndarray, other_grid: Grid, other: np.ndarray) -> np.ndarray:
+    """What the user is given by `other` (on `other_grid`) minus what `x` (on `grid`) gives, at
+    x's points: at the user's times (with a free T, t = s·T, each solution its own T) and in
+    the model's ``observed`` columns (x, then a T or parameters found), (N, ·)."""
+    times = grid.t * model.time_scale(x) / model.time_scale(other)
+    return model.observed(dense(other_grid, other, times)) - model.observed(x)
 
 
 def misplaced_switches(functional: Functional, result: SolveResult) -> float:

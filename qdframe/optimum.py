@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .estimates import dense
+from .estimates import observed_difference
 from .model import InclusionModel
 from .status import Status
 
@@ -141,7 +141,6 @@ def penalty_error(rounds: list[Round]) -> float:
     if len(rounds) < 2:
         return 0.0
     last, before = rounds[-1], rounds[-2]
-    model, x, earlier = last.functional.model, np.asarray(last.result.x, float), np.asarray(before.result.x, float)
-    times = last.functional.grid.t * model.time_scale(x) / model.time_scale(earlier)
-    difference = model.observed(dense(before.functional.grid, earlier, times)) - model.observed(x)
+    difference = observed_difference(last.functional.model, last.functional.grid, np.asarray(last.result.x, float),
+                                     before.functional.grid, np.asarray(before.result.x, float))
     return float(np.max(np.abs(difference))) * before.weight / (last.weight - before.weight)
