@@ -81,7 +81,8 @@ class Skeleton:
         self.constant = len(constant)
         index = np.cumsum(own) - 1
         index[first] = np.count_nonzero(own) + np.arange(len(constant))  # … then the constant states'
-        return np.where(target >= 0, index[np.maximum(target, 0)], -1)
+        dtype = np.int32 if self.size < np.iinfo(np.int32).max else np.int64  # J's index type (:mod:`.sparse_rows`)
+        return np.where(target >= 0, index[np.maximum(target, 0)], -1).astype(dtype)
 
     def _reduction(self) -> sp.csr_matrix:
         """R (size × reduced): d = R·d_r, a constant state's x_i(t_k) all the column of x_i(t_0)."""
@@ -94,17 +95,17 @@ class Skeleton:
         than the constant states' (sparse: the rest keep their order, so stay sorted) and the
         constant states' (dense, rows × their count: each a sum over the nodes)."""
         cut = self.R.shape[1] - self.constant
-        target = self.columns[matrix.indices].astype(matrix.indices.dtype, copy=False)
-        inner = target.astype(np.uint64 if target.itemsize == 8 else np.uint32, copy=False) < cut  # −1 (none) is large
+        target = self.columns[matrix.indices]  # in the columns' own index type (:meth:`_constant_columns`)
+        inner = target.view(np.uint64 if target.itemsize == 8 else np.uint32) < cut  # −1 (none) is large
         running = np.zeros(inner.size + 1, dtype=matrix.indptr.dtype)
         np.cumsum(inner, out=running[1:])
         rows = matrix.shape[0]
         sparse = sp.csr_matrix((matrix.data[inner], target[inner], running[matrix.indptr]), shape=(rows, cut))
         sparse.has_sorted_indices = True
-        outer = np.flatnonzero(target >= cut)
-        row_of = np.repeat(np.arange(rows, dtype=matrix.indptr.dtype), np.diff(matrix.indptr))[outer]
-        dense = np.bincount(row_of * self.constant + (target[outer] - cut), weights=matrix.data[outer],
-                            minlength=rows * self.constant).reshape(rows, self.constant)
+        outer = target >= cut  # the constant states' entries, summed per row (the same cumulative count)
+        np.cumsum(outer, out=running[1:])
+        dense = sp.csr_matrix((matrix.data[outer], target[outer] - cut, running[matrix.indptr]),
+                              shape=(rows, self.constant)).toarray()
         return sparse, dense
 
     def reduced(self, matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
