@@ -163,3 +163,37 @@ def test_the_active_set_step_minimizes_the_step_qp(model_index, seed, exact, mon
     # the same step, to the rounding of another pivot order (a fresh KKTSolver's own analysis)
     assert len(solves) == 1 and np.allclose(d_warm, d, rtol=0, atol=1e-9 * np.abs(d).max())
     assert np.isclose(predicted_warm, predicted, rtol=1e-12)
+
+
+def test_the_active_set_iteration_stops_at_a_guess_it_has_solved(monkeypatch):
+    """The next guess is a function of the last, so a guess that comes back starts a cycle
+    that never settles: the iteration hands the step to the QP there, not after MAX_GUESSES
+    solves. block-time-optimal on 21 nodes cycles through 2–15 guesses in many steps; no
+    guess is solved twice, and the shortest time is still found."""
+    import qdframe.directions.gauss_newton as gn
+
+    runs, current = [], []
+    guess_step, solve = gn.ActiveSetIteration._guess_step, gn.ActiveSetIteration.solve
+
+    def counted_guess(self, hessian, gradient, active, ties):
+        current.append((active.tobytes(), *(tie.tobytes() for tie in ties)))
+        try:
+            return guess_step(self, hessian, gradient, active, ties)
+        except gn.BackendError:
+            current.append("singular")
+            raise
+
+    def counted_solve(self, *args):
+        current.clear()
+        found = solve(self, *args)
+        runs.append((list(current), found))
+        return found
+
+    monkeypatch.setattr(gn.ActiveSetIteration, "_guess_step", counted_guess)
+    monkeypatch.setattr(gn.ActiveSetIteration, "solve", counted_solve)
+    result = qdframe.solve("block-time-optimal", nodes=21, estimate=False)
+    assert abs(result.T - 4 / 3 * np.sqrt(1.5)) <= 1e-6
+    assert all(len(set(guesses)) == len(guesses) for guesses, _ in runs)  # none solved twice
+    cut = [guesses for guesses, found in runs if found is None and "singular" not in guesses
+           and len(guesses) < gn.MAX_GUESSES]
+    assert cut  # steps handed over at a repeated guess
