@@ -166,7 +166,7 @@ def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, 
             lam[a : a + k] = part / radius if radius > 0 else (aims or {}).get(a, np.eye(k)[0])
         elif mode[a] == LEAVING:
             lam[a : a + k] = 0.0
-    base = fields.g + fields.B @ np.where(np.isin(np.arange(lam.size), sliding), 0.0, lam)
+    base = fields.g + fields.B @ _without(lam, sliding)
     equivalent: dict[int, np.ndarray] = {}
     if sliding:
         grads = fields.ds[sliding]
@@ -180,13 +180,20 @@ def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, 
                 response = fields.ds[a : a + k] @ fields.B[:, a : a + k]
                 lam[a : a + k] = quasi_static(response, equivalent[a])
             fixed = [i for i in sliding if not (i in ball_of and mode[ball_of[i][0]] == LEAVING)]
-            base = fields.g + fields.B @ np.where(np.isin(np.arange(lam.size), fixed), 0.0, lam)
+            base = fields.g + fields.B @ _without(lam, fixed)
             if fixed:
                 grads = fields.ds[fixed]
                 lam[fixed] = np.linalg.solve(grads @ fields.B[:, fixed], -(grads @ base))
             return base + fields.B[:, fixed] @ lam[fixed], lam, equivalent
         base = base + fields.B[:, sliding] @ lam[sliding]
     return base, lam, equivalent
+
+
+def _without(lam: np.ndarray, columns: Sequence[int]) -> np.ndarray:
+    """λ with the entries `columns` set to 0 (a few, one point at a time: no np.isin)."""
+    out = lam.copy()
+    out[list(columns)] = 0.0
+    return out
 
 
 def quasi_static(response: np.ndarray, equivalent: np.ndarray) -> np.ndarray:
