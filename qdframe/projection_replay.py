@@ -37,8 +37,8 @@ replay is the collocation solution (Lobatto IIIA, the cumulative Simpson rule, o
 at all those points at once: the fixed point of X = x0 + C·P(X, z), C the cumulative
 quadrature, found by Newton–Picard sweeps — one vectorized evaluation of P (and its
 x-Jacobian from the sides' gradients) per sweep at every point, the correction δ
-solving the linearized equation by backward Euler (an affine recursion evaluated as a
-parallel prefix scan: no Python loop over time). s is chosen so that there are at least
+solving the linearized equation by backward Euler (the recursion for all steps at once,
+one block-bidiagonal banded solve: no Python loop over time). s is chosen so that there are at least
 `min_substeps` sub-intervals in all; the replay is then repeated with 2s, 4s, …
 sub-intervals per interval (each run started from the one before) until the replay at
 the solver's nodes changes by ≤ `target` or the next run would exceed `max_points`
@@ -53,6 +53,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_banded
 
 from .errors import InputError
 from .functional import Functional
@@ -229,16 +230,13 @@ class _Run:
         X = X.copy()
         X[0] = x0
         dt = np.diff(self.tau)
-        eye = np.eye(self.n)
         corners, last, previous = 0, np.inf, np.inf
         for sweep in range(1, max_sweeps + 1):
             g, jac, c, ends = self.evaluate(X)
             corners = max(corners, c)
             residual = x0 + self.integrate(g, ends) - X
-            # δ' = J δ + R' by backward Euler: δ_{i+1} = A_i (δ_i + R_{i+1} − R_i), A_i = (I − Δ_i J_{i+1})^{-1}
-            A = np.linalg.inv(eye - dt[:, None, None] * jac[1:])
-            b = np.einsum("kij,kj->ki", A, np.diff(residual, axis=0))
-            delta = np.concatenate([np.zeros((1, self.n)), _affine_scan(A, b)])
+            # δ' = J δ + R' by backward Euler: (I − Δ_i J_{i+1}) δ_{i+1} − δ_i = R_{i+1} − R_i, δ_0 = 0
+            delta = np.concatenate([np.zeros((1, self.n)), _backward_euler(dt, jac[1:], np.diff(residual, axis=0))])
             X += delta
             last = float(np.max(np.abs(delta)))
             if last <= tol * (1.0 + float(np.max(np.abs(X)))):
@@ -249,13 +247,16 @@ class _Run:
         return X, sweep, last, corners
 
 
-def _affine_scan(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """δ_{k+1} = A_k δ_k + b_k from δ_0 = 0, for all k: (K, n), by a parallel prefix scan
-    (log2 K rounds of batched products) — composing map k after map k − d."""
-    A, b = A.copy(), b.copy()
-    d = 1
-    while d < b.shape[0]:
-        b[d:] = np.einsum("kij,kj->ki", A[d:], b[:-d]) + b[d:]
-        A[d:] = np.matmul(A[d:], A[:-d])
-        d *= 2
-    return b
+def _backward_euler(dt: np.ndarray, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """δ_1 … δ_K of (I − Δ_k J_k) δ_k − δ_{k−1} = rhs_k from δ_0 = 0, for all k at once: the
+    block lower-bidiagonal system (blocks n × n: I − Δ_k J_k on the diagonal, −I below) is
+    banded, lower bandwidth n and upper n − 1, and LAPACK's banded LU solves it in O(K·n²)."""
+    K, n = rhs.shape
+    upper = n - 1
+    bands = np.zeros((2 * n, K * n))  # row upper + i − j holds entry (i, j) (scipy.linalg.solve_banded)
+    blocks = np.eye(n)[None] - dt[:, None, None] * jac  # (K, n, n)
+    a, b = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    columns = (np.arange(K)[:, None, None] * n + b[None]).ravel()
+    bands[np.broadcast_to(upper + a - b, (K, n, n)).ravel(), columns] = blocks.ravel()
+    bands[upper + n, : (K - 1) * n] = -1.0  # −I: entry (k·n + i, (k − 1)·n + i)
+    return solve_banded((n, upper), bands, rhs.ravel(), check_finite=False).reshape(K, n)
