@@ -77,7 +77,9 @@ class Grid:
         # the mesh position of every point's anchor: the point itself on the mesh, else its base
         anchor = np.searchsorted(self.mesh, np.arange(self.nodes), side="right") - 1
         object.__setattr__(self, "_anchor", anchor)
-        object.__setattr__(self, "_off_mesh", np.setdiff1d(np.arange(self.nodes), self.mesh))
+        off_mesh = np.ones(self.nodes, dtype=bool)  # the points that are not mesh points (a mask: no sort)
+        off_mesh[self.mesh] = False
+        object.__setattr__(self, "_off_mesh", np.flatnonzero(off_mesh))
         # the mesh points on a switch time whose z belongs to the interval before them alone
         # (the rule does not integrate an interval's first z): their selections are the left
         # limits, the point before's (Functional.left_limits)
