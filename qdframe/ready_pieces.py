@@ -9,7 +9,8 @@ for all nodes at once. The common ones, ready made:
 - :func:`ball_switch`: the switch s(y) = W·y_J ∈ R^k of a vector sign (isotropic friction,
   :class:`~qdframe.model.BallSwitch`);
 - :func:`abs_sum`: the amplitude groups of scale·Σ|y_i| for a
-  :class:`~qdframe.model.SignTerm` (each |y_i| = max{y_i, −y_i}, paper Section 5).
+  :class:`~qdframe.model.SignTerm` (each |y_i| = max{y_i, −y_i}, paper Section 5);
+- :func:`repeated`: a constant row at every node (a constant gradient or piece value).
 
 Models written with :mod:`qdframe.sets` need none of these: SymPy derives their gradients.
 """
@@ -25,6 +26,15 @@ from .model import BallSwitch
 Affine = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
+def repeated(row: np.ndarray, count: int) -> np.ndarray:
+    """`row` repeated `count` times along a new first axis, as a new array: the constant
+    gradient of a piece at every node. Filled in place: at one point (the event integrator's
+    calls, ~1e5 in a replay) 4 µs against 7 µs for np.broadcast_to(…).copy(); the same at 1e5."""
+    out = np.empty((count,) + np.shape(row))
+    out[...] = row
+    return out
+
+
 def affine(coefficients: Mapping[int, float], width: int, constant: float = 0.0) -> Affine:
     """y ↦ constant + Σ c_i·y_i with its gradient: values (N,), gradients (N, width)."""
     gradient = np.zeros(width)
@@ -32,7 +42,7 @@ def affine(coefficients: Mapping[int, float], width: int, constant: float = 0.0)
         gradient[index] = value
 
     def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return constant + y @ gradient, np.broadcast_to(gradient, y.shape).copy()
+        return constant + y @ gradient, repeated(gradient, y.shape[0])
 
     return rhs
 
@@ -75,6 +85,6 @@ def ball_switch(indices: Sequence[int], width: int, matrix: Sequence[Sequence[fl
     gradient[:, indices] = weights
 
     def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return y @ gradient.T, np.broadcast_to(gradient, (y.shape[0],) + gradient.shape).copy()
+        return y @ gradient.T, repeated(gradient, y.shape[0])
 
     return BallSwitch(switch, weights.shape[0], name)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import InclusionModel, MaxGroup, SetBlock, SignTerm
+from ..ready_pieces import repeated
 
 BAND = 1e-3
 
@@ -38,7 +39,7 @@ def _interval(lower: float, upper: float, width: int) -> MaxGroup:
     """co{lower, upper}: two constant pieces (paper (supf))."""
 
     def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        values = np.tile([lower, upper], (y.shape[0], 1))[:, :, None]
+        values = repeated(np.array([[lower], [upper]]), y.shape[0])
         return values, np.zeros((y.shape[0], 2, 1, width))
 
     return MaxGroup(pieces, f"[{lower:g}, {upper:g}]")
@@ -50,7 +51,7 @@ def _coordinate(index: int, width: int):
     gradient[index] = 1.0
 
     def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return y[:, index].copy(), np.broadcast_to(gradient, y.shape).copy()
+        return y[:, index].copy(), repeated(gradient, y.shape[0])
 
     return rhs
 

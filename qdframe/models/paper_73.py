@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..ready_pieces import abs_sum
+from ..ready_pieces import abs_sum, repeated
 from ..model import InclusionModel, SetBlock, SignTerm, Surface
 
 REACHING_START = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
@@ -48,7 +48,7 @@ def _linear(coefficients: dict[int, float]):
         gradient[index] = value
 
     def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return y @ gradient, np.broadcast_to(gradient, y.shape).copy()
+        return y @ gradient, repeated(gradient, y.shape[0])
 
     return rhs
 
@@ -59,7 +59,7 @@ def _minus(index: int):
     gradient[index] = -1.0
 
     def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return -y[:, index], np.broadcast_to(gradient, y.shape).copy()
+        return -y[:, index], repeated(gradient, y.shape[0])
 
     return switch
 
