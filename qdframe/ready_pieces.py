@@ -65,7 +65,10 @@ def abs_sum(indices: Sequence[int], scale: float, width: int) -> tuple[Callable,
         def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             grads = np.zeros((y.shape[0], 2, width))
             grads[:, 0, i], grads[:, 1, i] = scale, -scale
-            return np.stack([scale * y[:, i], -scale * y[:, i]], axis=1), grads
+            values = np.empty((y.shape[0], 2))  # filled in place (np.stack costs ~10 µs a call at one point)
+            np.multiply(y[:, i], scale, out=values[:, 0])
+            np.negative(values[:, 0], out=values[:, 1])  # −(scale·y) = (−scale)·y exactly
+            return values, grads
 
         return pieces
 
