@@ -170,7 +170,7 @@ def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, 
     equivalent: dict[int, np.ndarray] = {}
     if sliding:
         grads = fields.ds[sliding]
-        lam[sliding] = np.linalg.solve(grads @ fields.B[:, sliding], -(grads @ base))
+        lam[sliding] = _solved(grads @ fields.B[:, sliding], -(grads @ base))
         leaving = [(a, k) for a, k in balls if mode[a] == LEAVING]
         for a, k in balls:
             if mode[a] in (0, LEAVING):
@@ -183,10 +183,21 @@ def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, 
             base = fields.g + fields.B @ _without(lam, fixed)
             if fixed:
                 grads = fields.ds[fixed]
-                lam[fixed] = np.linalg.solve(grads @ fields.B[:, fixed], -(grads @ base))
+                lam[fixed] = _solved(grads @ fields.B[:, fixed], -(grads @ base))
             return base + fields.B[:, fixed] @ lam[fixed], lam, equivalent
         base = base + fields.B[:, sliding] @ lam[sliding]
     return base, lam, equivalent
+
+
+def _solved(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """matrix⁻¹·rhs: one sliding switch (1 × 1) by a division (np.linalg.solve costs ~20 µs a
+    call at this size, and the event integrator asks once per right-hand side), else LAPACK.
+    Raises numpy.linalg.LinAlgError where the matrix is singular, as np.linalg.solve does."""
+    if matrix.shape == (1, 1):
+        if matrix[0, 0] == 0.0 or not np.isfinite(matrix[0, 0]):
+            raise np.linalg.LinAlgError("Singular matrix")
+        return rhs / matrix[0, 0]
+    return np.linalg.solve(matrix, rhs)
 
 
 def _without(lam: np.ndarray, columns: Sequence[int]) -> np.ndarray:
