@@ -30,30 +30,20 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import InclusionModel, MaxGroup, SetBlock, SignTerm
-from ..ready_pieces import repeated
+from ..ready_pieces import coordinate, repeated
 
 BAND = 1e-3
 
 
 def _interval(lower: float, upper: float, width: int) -> MaxGroup:
     """co{lower, upper}: two constant pieces (paper (supf))."""
+    bounds = np.array([[lower], [upper]])
 
     def pieces(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        values = repeated(np.array([[lower], [upper]]), y.shape[0])
+        values = repeated(bounds, y.shape[0])
         return values, np.zeros((y.shape[0], 2, 1, width))
 
     return MaxGroup(pieces, f"[{lower:g}, {upper:g}]")
-
-
-def _coordinate(index: int, width: int):
-    """y ↦ y_index with its gradient."""
-    gradient = np.zeros(width)
-    gradient[index] = 1.0
-
-    def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return y[:, index].copy(), repeated(gradient, y.shape[0])
-
-    return rhs
 
 
 class CoulombRestToRest(InclusionModel):
@@ -77,7 +67,7 @@ class CoulombRestToRest(InclusionModel):
             return -y[:, 1], gradient  # F·Sgn(−v) = −F·Sgn(v)
 
         return (
-            SetBlock.equation(0, _coordinate(1, 2), "p' = v"),
+            SetBlock.equation(0, coordinate(1, 2), "p' = v"),
             SetBlock(
                 (1,),
                 max_groups=(_interval(-self.force_bound, self.force_bound, 2),),
@@ -122,8 +112,8 @@ class SlidingModeTerminal(InclusionModel):
 
         bound = self.input_bound
         return (
-            SetBlock.equation(0, _coordinate(2, 4), "x1' ∈ v1 − Sgn(c1)", (SignTerm(1.0, minus_c1, self.band, "Sgn(c1)"),)),
-            SetBlock.equation(1, _coordinate(3, 4), "x2' ∈ v2 − Sgn(c2)", (SignTerm(1.0, minus_c2, self.band, "Sgn(c2)"),)),
+            SetBlock.equation(0, coordinate(2, 4), "x1' ∈ v1 − Sgn(c1)", (SignTerm(1.0, minus_c1, self.band, "Sgn(c1)"),)),
+            SetBlock.equation(1, coordinate(3, 4), "x2' ∈ v2 − Sgn(c2)", (SignTerm(1.0, minus_c2, self.band, "Sgn(c2)"),)),
             SetBlock((2,), max_groups=(_interval(-bound, bound, 4),), name="v1' ∈ [−10, 10]"),
             SetBlock((3,), max_groups=(_interval(-bound, bound, 4),), name="v2' ∈ [−10, 10]"),
         )

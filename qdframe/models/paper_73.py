@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..ready_pieces import abs_sum, repeated
+from ..ready_pieces import abs_sum, affine
 from ..model import InclusionModel, SetBlock, SignTerm, Surface
 
 REACHING_START = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
@@ -39,29 +39,6 @@ REACHING_END = (-1.052416998365643, 1.099387196129389, -0.787251438817487, 6.637
 FRICTION = 0.3
 GAIN = 1.05
 WIDTH = 7  # y = (x1, …, x6, u)
-
-
-def _linear(coefficients: dict[int, float]):
-    """y ↦ Σ c_i y_i with its gradient."""
-    gradient = np.zeros(WIDTH)
-    for index, value in coefficients.items():
-        gradient[index] = value
-
-    def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return y @ gradient, repeated(gradient, y.shape[0])
-
-    return rhs
-
-
-def _minus(index: int):
-    """The switch s = −y_index (a·Sgn(−v) = −a·Sgn(v))."""
-    gradient = np.zeros(WIDTH)
-    gradient[index] = -1.0
-
-    def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return -y[:, index], repeated(gradient, y.shape[0])
-
-    return switch
 
 
 def _on_surface(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,16 +69,17 @@ class Paper73(InclusionModel):
     def blocks(self) -> tuple[SetBlock, ...]:
         beta = self.band
         return (
-            SetBlock.equation(0, _linear({3: 1.0}), "x1' = x4"),
-            SetBlock.equation(1, _linear({4: 1.0}), "x2' = x5"),
-            SetBlock.equation(2, _linear({5: 1.0}), "x3' = x6"),
-            SetBlock.equation(3, _linear({0: -2.0, 1: 1.0, 3: -1.0}), "x4'",
-                              (SignTerm(abs_sum(range(6), GAIN, WIDTH), _minus(3), self.surface_band,
+            SetBlock.equation(0, affine({3: 1.0}, WIDTH), "x1' = x4"),
+            SetBlock.equation(1, affine({4: 1.0}, WIDTH), "x2' = x5"),
+            SetBlock.equation(2, affine({5: 1.0}, WIDTH), "x3' = x6"),
+            # each switch is s = −v (a·Sgn(−v) = −a·Sgn(v))
+            SetBlock.equation(3, affine({0: -2.0, 1: 1.0, 3: -1.0}, WIDTH), "x4'",
+                              (SignTerm(abs_sum(range(6), GAIN, WIDTH), affine({3: -1.0}, WIDTH), self.surface_band,
                                         "1.05|x|Sgn(x4)"),)),
-            SetBlock.equation(4, _linear({0: 1.0, 1: -2.0, 2: 1.0, 4: -1.0}), "x5'",
-                              (SignTerm(FRICTION, _minus(4), beta, "0.3 Sgn(x5)"),)),
-            SetBlock.equation(5, _linear({1: 1.0, 2: -1.0, 5: -1.0, 6: 1.0}), "x6'",
-                              (SignTerm(FRICTION, _minus(5), beta, "0.3 Sgn(x6)"),)),
+            SetBlock.equation(4, affine({0: 1.0, 1: -2.0, 2: 1.0, 4: -1.0}, WIDTH), "x5'",
+                              (SignTerm(FRICTION, affine({4: -1.0}, WIDTH), beta, "0.3 Sgn(x5)"),)),
+            SetBlock.equation(5, affine({1: 1.0, 2: -1.0, 5: -1.0, 6: 1.0}, WIDTH), "x6'",
+                              (SignTerm(FRICTION, affine({5: -1.0}, WIDTH), beta, "0.3 Sgn(x6)"),)),
         )
 
     def surface(self) -> Surface:
