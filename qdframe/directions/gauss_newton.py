@@ -222,7 +222,7 @@ class Step:
         active-set iteration, Clarabel where it does not settle); `previous` its last solution
         (a warm start), this step's in :attr:`qp_solution`."""
         system = self.system
-        gradient = system.penalty * (system.jacobian.T @ system.residual)
+        gradient = system.gradient()
         cache: dict[bool, sp.csc_matrix] = {}
 
         def hessian(reduced: bool) -> sp.csc_matrix:

@@ -49,7 +49,8 @@ class Skeleton:
             ((0, n), (n, n), (2 * n, m), (2 * n + m, n)))  # (N, count) each
         self.y_cols = _frozen(np.concatenate([self.x_cols, self.u_cols], axis=1))
         self.constraints = _constraints(self)
-        self.constant = 0  # how many constant states (:meth:`_constant_columns`)
+        self.constant = 0  # how many constant states (:meth:`_constant_columns`) …
+        self.constant_mask = np.zeros(n, dtype=bool)  # … and which
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
         self.reduced_damping = None  # R·W: the L² weights (:meth:`LinearizedSystem.damping`) on the reduced columns
@@ -79,6 +80,7 @@ class Skeleton:
         own = target == np.arange(self.size)  # the columns that stay, in order …
         own[first] = False
         self.constant = len(constant)
+        self.constant_mask[constant] = True
         index = np.cumsum(own) - 1
         index[first] = np.count_nonzero(own) + np.arange(len(constant))  # … then the constant states'
         dtype = np.int32 if self.size < np.iinfo(np.int32).max else np.int64  # J's index type (:mod:`.sparse_rows`)
@@ -175,7 +177,10 @@ class LinearizedSystem:
         blocks = functional.distance_sides(xi)
         self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
         # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
-        self.residual, self.jacobian = self._least_squares(xi, [block for block in blocks if block.equation])
+        self._still_entries: list[tuple[np.ndarray, np.ndarray]] = []  # a constant state's own rows (:meth:`still`)
+        self._still: sp.csr_matrix | None = None
+        self.residual, self.jacobian, self.still_residual = self._least_squares(
+            xi, [block for block in blocks if block.equation])
         del blocks
         self.constraints = skeleton.constraints
         # the cost's max- and min-groups: (values (N, q), gradients (N, q, n + m)) each, a 0
@@ -221,30 +226,42 @@ class LinearizedSystem:
         more, emptied = self.skeleton.reduced(ties)
         return sp.vstack([reduced, more[~emptied]], format="csr"), np.concatenate([live, ~emptied])
 
-    def _least_squares(self, xi: np.ndarray, equations: list) -> tuple[np.ndarray, sp.csr_matrix]:
+    def _least_squares(self, xi: np.ndarray, equations: list) -> tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
         """The residuals r and J (one generalized-Jacobian element) of υ, χ, ω, the point
-        sets' φ (`equations`) and σ, row blocks in that order."""
+        sets' φ (`equations`) and σ, row blocks in that order, but for the constant states' own
+        rows (their υ and x_i' = 0), whose residuals come third and whose J waits (:meth:`still`)."""
         f, nodes = self.f, self.nodes
         root_w = np.sqrt(f.weights)
-        rows = RowBlocks(self.size)  # J, its exactly-zero entries left out (:mod:`.sparse_rows`)
-        residuals = []
+        rows = RowBlocks(self.size)  # exactly-zero entries left out (:mod:`.sparse_rows`)
+        residuals: list[np.ndarray] = []
+        still_residuals: list[np.ndarray] = []
+        constant = self.skeleton.constant_mask & ~f.start_given  # with x_i(t_0) given the rows do not vanish
 
-        def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
-            """res: (R,), col/val: (R, E) entries of R new rows; a column of entries all zero (a
-            piece constant in a variable, a constant state's σ' = 0) is left out before sorting."""
+        def add(res: np.ndarray, col: np.ndarray, val: np.ndarray, own: bool = False) -> None:
+            """res: (R,), col/val: (R, E) entries of R new rows (`own`: a constant state's own); a
+            column of entries all zero (a piece constant in a variable, a constant state's
+            σ' = 0) is left out before sorting."""
             live = np.any(val != 0.0, axis=0)
             if not live.all():
                 col, val = col[:, live], val[:, live]
-            rows.add(col, val)
-            residuals.append(res)
+            if own:
+                self._still_entries.append((col, val))
+                still_residuals.append(res)
+            else:
+                rows.add(col, val)
+                residuals.append(res)
 
         consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
-        start_free = np.tile(~f.start_given, nodes)  # −√w_k on a free x_i(0) (0 where it is given)
-        add((root_w[:, None] * consistency).ravel(),  # columns x_i(t_0) ≤ x_i(t_k) < Z_i(t_k): every row in order
-            np.stack([np.tile(x_cols[0], nodes), x_cols.ravel(), Z_cols.ravel()], axis=1),
-            np.stack([-np.repeat(root_w, self.n) * start_free, np.repeat(root_w, self.n), -np.repeat(root_w, self.n)],
-                     axis=1))
+        for own in (False, True) if constant.any() else (False,):
+            states = constant if own else ~constant
+            count = int(np.count_nonzero(states))
+            start_free = np.tile(~f.start_given[states], nodes)  # −√w_k on a free x_i(0) (0 where it is given)
+            add((root_w[:, None] * consistency[:, states]).ravel(),  # columns x_i(t_0) ≤ x_i(t_k) < Z_i(t_k)
+                np.stack([np.tile(x_cols[0, states], nodes), x_cols[:, states].ravel(), Z_cols[:, states].ravel()],
+                         axis=1),
+                np.stack([-np.repeat(root_w, count) * start_free, np.repeat(root_w, count),
+                          -np.repeat(root_w, count)], axis=1), own)
         end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
         if end.size:
             coords = np.concatenate([f.end, f.periodic])
@@ -261,7 +278,8 @@ class LinearizedSystem:
         for block in equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
             (ell, dell_dy, psi), = block.sides
             add(root_w * ell, np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
-                root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
+                root_w[:, None] * np.concatenate([dell_dy, psi], axis=1),
+                bool(constant[list(block.coords)].all()) and not np.any(dell_dy))  # x_i' = 0 of a constant state
         if f.p:  # σ: the selections' natural map
             r, dr = f.selection_residual(xi)
             cols = np.repeat(y_cols[:, None, :], f.p, axis=1)  # (N, p, width)
@@ -276,7 +294,39 @@ class LinearizedSystem:
                 cols = np.concatenate([cols, extra_cols], axis=2)
                 vals = np.concatenate([vals, extra_vals], axis=2)
             add((root_w[:, None] * r).ravel(), cols.reshape(nodes * f.p, -1), vals.reshape(nodes * f.p, -1))
-        return np.concatenate(residuals), rows.matrix()
+        return np.concatenate(residuals), rows.matrix(), np.concatenate(still_residuals or [np.zeros(0)])
+
+    def still(self) -> sp.csr_matrix:
+        """J's rows of the constant states' own residuals (`still_residual`): υ, √w_k·(x_i(t_k) −
+        x_i(t_0) − Z_i(t_k)), and x_i' = 0, √w_k·z_i. On the reduced columns (R) they vanish
+        (x_i(t_k) and x_i(t_0) are one unknown, z_i and Z_i none), so a step on them never builds
+        them: at N = 1e5 a third of J's rows for one parameter, ~20 ms a step."""
+        if self._still is None:
+            rows = RowBlocks(self.size)
+            for col, val in self._still_entries:
+                rows.add(col, val)
+            self._still = rows.matrix()
+        return self._still
+
+    def _still_moves(self, d: np.ndarray | None = None) -> bool:
+        """Whether the constant states' own rows count: their residuals are not all 0, or `d`
+        is not on the reduced columns (a constant state's step unlike at some node, or its z or Z moved)."""
+        if not self._still_entries:
+            return False
+        if np.any(self.still_residual) or d is None:
+            return True
+        for i in np.flatnonzero(self.skeleton.constant_mask & ~self.f.start_given):
+            if np.any(d[self.x_cols()[:, i]] != d[self.x_cols()[0, i]]) or np.any(d[self.z_cols()[:, i]]) \
+                    or np.any(d[self.Z_cols()[:, i]]):
+                return True
+        return False
+
+    def gradient(self) -> np.ndarray:
+        """λJᵀr on every column (the constant states' own rows: where their residuals are not all 0)."""
+        gradient = self.jacobian.T @ self.residual
+        if np.any(self.still_residual):
+            gradient += self.still().T @ self.still_residual
+        return self.penalty * gradient
 
     def damping(self) -> np.ndarray:
         """L² weights w_k on x, z, u (none on Z, which the constraints determine)."""
@@ -289,7 +339,8 @@ class LinearizedSystem:
         bordered: the constant states' columns (the last, each dense) apart (:class:`.kkt.Bordered`)."""
         J, lam = self.jacobian, self.penalty
         if not reduced or self.R is None:
-            return (lam * (J.T @ J) + mu * sp.diags(self.damping())).tocsc()
+            normal = J.T @ J + self.still().T @ self.still() if self._still_entries else J.T @ J
+            return (lam * normal + mu * sp.diags(self.damping())).tocsc()
         inner, outer = self.skeleton.split(J)
         damping = self.skeleton.reduced_damping
         cut = inner.shape[1]
@@ -339,8 +390,10 @@ class LinearizedSystem:
         max-groups at their linearized maximum and min-groups at their linearized active piece
         (predicted_sides: v + Ad, the hinge rows at d)."""
         w = self.f.weights
-        model = 0.5 * self.penalty * (np.sum((self.residual + self.jacobian @ d) ** 2)
-                                      + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
+        squares = np.sum((self.residual + self.jacobian @ d) ** 2)
+        if self._still_moves(d):
+            squares += np.sum((self.still_residual + self.still() @ d) ** 2)
+        model = 0.5 * self.penalty * (squares + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
         model += sum(float(w @ predicted.max(axis=1)) for predicted in self.max_pieces(d))
         model += float(self.min_linear() @ d) + sum(float(w @ values.min(axis=1)) for values, _ in self.min_groups)
         return float(self.value - model)
