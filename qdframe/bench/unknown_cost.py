@@ -4,16 +4,20 @@ For each model with unknowns and each N, the CPU seconds of one gauss-newton ite
 direction, then the objective at the new iterate) on the model as the solver sees it
 (:class:`qdframe.unknowns.Unknowns`: T and p as constant states) against the same model
 with T and p fixed at their guesses (``Unknowns(…, fixed=True)``: the same pieces, the
-parameters inserted as numbers). Both start from the model's own start x ≡ x0 and take
-full steps, an iteration of each in turn (CPU time, so that other work on a shared machine
-counts against neither); the median over the iterations after the first is kept (the first
-includes the KKT solver's set-up).
+parameters inserted as numbers). Both start from the model's own start x ≡ x0 with full
+steps; after WARMUP iterations (the first includes the KKT solver's analysis) each of the
+next ITERATIONS iterations is taken REPEATS times from the same iterate and solver state,
+the two forms in turn (CPU time, so that other work on a shared machine counts against
+neither), and the least of its repeats is kept: the same work each time, so what varies
+from repeat to repeat is the machine (another process, the allocator), which only adds.
+The figure per form is the mean of those least times over the iterations.
 """
 
 from __future__ import annotations
 
+import copy
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +30,9 @@ from . import problems
 
 MODELS = problems.tagged("unknowns")  # T or a coefficient found with x
 NODES = (10001, 100001)
-ITERATIONS = 6
+WARMUP = 2
+ITERATIONS = 3
+REPEATS = 5
 
 
 @dataclass
@@ -42,38 +48,61 @@ class Cell:
         return self.unknown / self.fixed
 
 
-def _timed_steps(model, nodes: int) -> Iterator[float]:
-    """The CPU seconds of each gauss-newton iteration (direction + objective) on `model`, one per
-    `next`, from the model's start with full steps."""
-    functional = Functional(model, Grid(model.T, nodes, model.default_scheme))
-    xi = functional.initial_point()
-    solver = make_direction("gauss-newton")
-    solver.start(functional)
-    while True:
+class _Iterates:
+    """gauss-newton's iterates on `model` from its start, with full steps: :meth:`timed` the CPU
+    seconds of the next iteration (direction + objective) from the current iterate and solver
+    state, repeatable; :meth:`advance` takes it."""
+
+    def __init__(self, model, nodes: int) -> None:
+        self.functional = Functional(model, Grid(model.T, nodes, model.default_scheme))
+        self.xi = self.functional.initial_point()
+        self.solver = make_direction("gauss-newton")
+        self.solver.start(self.functional)
+
+    def _trial(self):
+        """A copy of the solver that shares its KKT analysis and skeleton but not its μ or
+        active set (so that an iteration can be taken again from the same state)."""
+        trial = copy.copy(self.solver)
+        trial._state = dict(self.solver._state)
+        return trial
+
+    def timed(self) -> float:
+        trial = self._trial()
         clock = time.process_time()
-        step = solver.compute(functional, xi, 1e-3).step
-        functional.objective(xi + step)
-        yield time.process_time() - clock
-        xi = xi + step
+        step = trial.compute(self.functional, self.xi, 1e-3).step
+        self.functional.objective(self.xi + step)
+        return time.process_time() - clock
+
+    def advance(self) -> None:
+        self.xi = self.xi + self.solver.compute(self.functional, self.xi, 1e-3).step
 
 
-def per_iteration(fixed_model, unknown_model, nodes: int, iterations: int = ITERATIONS) -> tuple[float, float]:
-    """Median CPU seconds of one iteration of each model, their iterations taken in turn (a
-    load on the machine falls on both alike), the first of each left out (the KKT solver's
-    set-up)."""
-    fixed, unknown = _timed_steps(fixed_model, nodes), _timed_steps(unknown_model, nodes)
-    pairs = [(next(fixed), next(unknown)) for _ in range(iterations)][1:]
-    return float(np.median([a for a, _ in pairs])), float(np.median([b for _, b in pairs]))
+def per_iteration(fixed_model, unknown_model, nodes: int, iterations: int = ITERATIONS, repeats: int = REPEATS,
+                  warmup: int = WARMUP) -> tuple[float, float]:
+    """CPU seconds of one iteration of each model (module docstring): the mean over
+    `iterations` iterates, after `warmup`, of the least of `repeats` timings of each, the two
+    forms in turn."""
+    runs = _Iterates(fixed_model, nodes), _Iterates(unknown_model, nodes)
+    for _ in range(warmup):
+        for run in runs:
+            run.advance()
+    least = np.zeros((iterations, 2))
+    for k in range(iterations):
+        least[k] = np.min([[run.timed() for run in runs] for _ in range(repeats)], axis=0)
+        for run in runs:
+            run.advance()
+    fixed, unknown = least.mean(axis=0)
+    return float(fixed), float(unknown)
 
 
 def run(models: Sequence[str] = MODELS, nodes: Sequence[int] = NODES, iterations: int = ITERATIONS,
-        progress: Callable[[str], None] | None = None) -> list[Cell]:
+        progress: Callable[[str], None] | None = None, repeats: int = REPEATS) -> list[Cell]:
     cells = []
     for name in models:
         model = load_model(name)
         for count in nodes:
             fixed_model, unknown_model = Unknowns(restated(model, False, None), fixed=True), Unknowns(model)
-            fixed, unknown = per_iteration(fixed_model, unknown_model, count, iterations)
+            fixed, unknown = per_iteration(fixed_model, unknown_model, count, iterations, repeats)
             width = tuple(Functional(m, Grid(m.T, 3)).dim for m in (fixed_model, unknown_model))
             cells.append(Cell(name, count, fixed, unknown, width))
             if progress is not None:

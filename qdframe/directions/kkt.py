@@ -171,7 +171,9 @@ class KKTSolver:
             border = np.linalg.solve(schur, right[dense] - coupling.T @ first)
         except np.linalg.LinAlgError as exc:
             raise BackendError(f"direction 'gauss-newton': the bordered KKT solve failed ({exc})") from exc
-        inside = first - through @ border
+        inside = first
+        for j in range(border.size):  # first − through·border in place (no array of K's size)
+            inside -= through[:, j] * border[j]
         solution = np.empty(right.size)
         if inner is None:
             solution[:cut], solution[size:] = inside[:cut], inside[cut:]
@@ -265,11 +267,10 @@ def _permuted_solve(factor, right: np.ndarray, gather: np.ndarray, order: np.nda
     for j in range(columns.shape[1]):
         np.take(columns[:, j], gather, out=permuted[:, j])
     solved = factor.solve(permuted if right.ndim == 2 else permuted[:, 0]).reshape(columns.shape, order="F")
-    if order is not None:
-        solution = np.empty(columns.shape, order="F")
+    if order is not None:  # scattered into `permuted`, which SuperLU copied (no new array of K's size)
         for j in range(columns.shape[1]):
-            solution[order, j] = solved[:, j]
-        solved = solution
+            permuted[order, j] = solved[:, j]
+        solved = permuted
     return solved if right.ndim == 2 else solved[:, 0]
 
 
