@@ -18,6 +18,7 @@ What does not depend on ξ (the columns, E, R and E on the reduced columns) is a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -124,6 +125,13 @@ class Skeleton:
         return reduced, emptied
 
 
+def _live(col: np.ndarray, val: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """col/val (R, E) without the columns of entries all zero (a piece constant in a variable),
+    left out before sorting."""
+    live = np.any(val != 0.0, axis=0)
+    return (col, val) if live.all() else (col[:, live], val[:, live])
+
+
 def _frozen(array: np.ndarray) -> np.ndarray:
     array.flags.writeable = False  # shared by the steps of a solve
     return array
@@ -177,7 +185,7 @@ class LinearizedSystem:
         blocks = functional.distance_sides(xi)
         self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
         # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
-        self._still_entries: list[tuple[np.ndarray, np.ndarray]] = []  # a constant state's own rows (:meth:`still`)
+        self._still_entries: list[Callable[[], tuple[np.ndarray, np.ndarray]]] = []  # their rows' (:meth:`still`)
         self._still: sp.csr_matrix | None = None
         self.residual, self.jacobian, self.still_residual = self._least_squares(
             xi, [block for block in blocks if block.equation])
@@ -237,31 +245,33 @@ class LinearizedSystem:
         still_residuals: list[np.ndarray] = []
         constant = self.skeleton.constant_mask & ~f.start_given  # with x_i(t_0) given the rows do not vanish
 
-        def add(res: np.ndarray, col: np.ndarray, val: np.ndarray, own: bool = False) -> None:
-            """res: (R,), col/val: (R, E) entries of R new rows (`own`: a constant state's own); a
-            column of entries all zero (a piece constant in a variable, a constant state's
-            σ' = 0) is left out before sorting."""
-            live = np.any(val != 0.0, axis=0)
-            if not live.all():
-                col, val = col[:, live], val[:, live]
-            if own:
-                self._still_entries.append((col, val))
-                still_residuals.append(res)
-            else:
-                rows.add(col, val)
-                residuals.append(res)
+        def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
+            """res: (R,), col/val: (R, E) entries of R new rows."""
+            rows.add(*_live(col, val))
+            residuals.append(res)
+
+        def add_still(res: np.ndarray, entries: Callable[[], tuple[np.ndarray, np.ndarray]]) -> None:
+            """A constant state's own rows: res now, their entries (col, val) when :meth:`still` asks."""
+            self._still_entries.append(entries)
+            still_residuals.append(res)
 
         consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
-        for own in (False, True) if constant.any() else (False,):
-            states = constant if own else ~constant
-            count = int(np.count_nonzero(states))
-            start_free = np.tile(~f.start_given[states], nodes)  # −√w_k on a free x_i(0) (0 where it is given)
-            add((root_w[:, None] * consistency[:, states]).ravel(),  # columns x_i(t_0) ≤ x_i(t_k) < Z_i(t_k)
-                np.stack([np.tile(x_cols[0, states], nodes), x_cols[:, states].ravel(), Z_cols[:, states].ravel()],
-                         axis=1),
-                np.stack([-np.repeat(root_w, count) * start_free, np.repeat(root_w, count),
-                          -np.repeat(root_w, count)], axis=1), own)
+
+        def upsilon(states: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray]:
+            """υ's entries for `states`: columns x_i(t_0) ≤ x_i(t_k) < Z_i(t_k), every row in order,
+            −√w_k on a free x_i(0) (0 where it is given)."""
+            count = x_cols[0, states].size
+            start_free = np.tile(~f.start_given[states], nodes)
+            return (np.stack([np.tile(x_cols[0, states], nodes), x_cols[:, states].ravel(), Z_cols[:, states].ravel()],
+                             axis=1),
+                    np.stack([-np.repeat(root_w, count) * start_free, np.repeat(root_w, count),
+                              -np.repeat(root_w, count)], axis=1))
+
+        moving = ~constant if constant.any() else slice(None)
+        add((root_w[:, None] * consistency[:, moving]).ravel(), *upsilon(moving))
+        if constant.any():
+            add_still((root_w[:, None] * consistency[:, constant]).ravel(), lambda: upsilon(constant))
         end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
         if end.size:
             coords = np.concatenate([f.end, f.periodic])
@@ -277,9 +287,15 @@ class LinearizedSystem:
         y_cols, z_cols = self.y_cols(), self.z_cols()
         for block in equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
             (ell, dell_dy, psi), = block.sides
-            add(root_w * ell, np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
-                root_w[:, None] * np.concatenate([dell_dy, psi], axis=1),
-                bool(constant[list(block.coords)].all()) and not np.any(dell_dy))  # x_i' = 0 of a constant state
+
+            def phi(block=block, dell_dy=dell_dy, psi=psi) -> tuple[np.ndarray, np.ndarray]:
+                return (np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
+                        root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
+
+            if constant[list(block.coords)].all() and not np.any(dell_dy):  # x_i' = 0 of a constant state
+                add_still(root_w * ell, phi)
+            else:
+                add(root_w * ell, *phi())
         if f.p:  # σ: the selections' natural map
             r, dr = f.selection_residual(xi)
             cols = np.repeat(y_cols[:, None, :], f.p, axis=1)  # (N, p, width)
@@ -303,8 +319,8 @@ class LinearizedSystem:
         them: at N = 1e5 a third of J's rows for one parameter, ~20 ms a step."""
         if self._still is None:
             rows = RowBlocks(self.size)
-            for col, val in self._still_entries:
-                rows.add(col, val)
+            for entries in self._still_entries:
+                rows.add(*_live(*entries()))
             self._still = rows.matrix()
         return self._still
 
