@@ -39,6 +39,13 @@ CERTIFY_WINDOW_FIRST_ORDER = 400  # the paper's min-norm directions converge lin
 EPS_SHRINK = 10.0  # ε and δ are divided by this where the iterate is ε-stationary but not solved
 EPS_FLOOR = 1e-12  # the smallest ε of a certified solve (solve's eps_floor=None where the mesh is refined)
 NEAR_ITERATE = 1e-6  # a trial that moves ξ by at most this (relative, max-norm) is next to the iterate
+# a line search that finds no decrease along a step whose slope is at most this × |objective| stops
+# at a stationary point for every purpose here (a cost's optimum is certified to ~1e-6 of it):
+# at a large penalty λ the model's slope is λ-amplified rounding (λ·r carries λ·1e-16), so the
+# step's predicted decrease and the objective's actual change differ in sign at ~1e-12 of it.
+# Seen on the time-optimal block at λ = 1.6e9: slope −2.9e-14 at objective 1.633 on 10001
+# nodes, −1.6e-12 on 20001 (the objective rising 4e-14 along it), on one CPU and not another.
+STALL_SLOPE = 1e-11
 # line-search trial points where the model is NaN/inf that a descent rejects before it stops with the
 # last one's piece, node, t and state: a few are a line search overshooting into a region the model
 # leaves undefined; thousands are a descent that keeps heading there (docs/guide.md, "Reliability").
@@ -192,6 +199,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 if escape():
                     continue
                 status, message = Status.STATIONARY, "no step along the direction decreases the objective"
+                optimal = abs(direction.slope) <= STALL_SLOPE * abs(terms.objective)
                 break
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
                 blocked = (f"a line-search trial point of iteration {iteration}", xi + bad[-1].gamma * step,

@@ -4,6 +4,7 @@ bang-bang answer of block-time-optimal, T* = (4/3)·√1.5."""
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -11,6 +12,13 @@ import pytest
 
 import qdframe
 from qdframe import optimum
+from qdframe.descent import DescentOptions, descend
+from qdframe.directions.base import Direction, DirectionSolver
+from qdframe.functional import Functional
+from qdframe.grid import Grid
+from qdframe.model import Cost
+from qdframe.models.paper import Paper71
+from qdframe.registry import make_line_search
 from qdframe.models.identification import BlockTimeOptimal
 from qdframe.status import Status
 
@@ -67,3 +75,45 @@ def test_raise_by_follows_the_first_order_rates():
     assert optimum.raise_by(_result(Status.MAX_ITER, 1e-3, checks, True), 1.0, 1.0, 1e-10) is None
     # far from the solutions (I = 1): the largest raise
     assert optimum.raise_by(_result(Status.STATIONARY, 1.0, {}, True), 1.0, 1.0, 1e-10) == optimum.MAX_RAISE
+
+
+class _PlusOne(Paper71):
+    """paper-7.1 with its cost ∫(|x1| + 1) dt: the least cost over the solutions is T, not 0."""
+
+    def cost(self) -> Cost:
+        def one(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return np.ones((y.shape[0], 1)), np.zeros((y.shape[0], 1, y.shape[1]))
+
+        return dataclasses.replace(super().cost(), max_groups=super().cost().max_groups + (one,))
+
+
+class _Stall(DirectionSolver):
+    """Proposes a step along which the objective rises, with a given slope (a line search then stalls)."""
+
+    name = "stall"
+
+    def __init__(self, slope: float) -> None:
+        self.slope = slope
+
+    def compute(self, functional, xi, delta):
+        step = np.full_like(xi, 1e-3)
+        step[0, : functional.n] = 0.0
+        return Direction(step=step, deviation=np.abs(step).max(axis=1), slope=self.slope, stationary=False)
+
+
+@pytest.mark.parametrize("relative_slope, status", [(-1e-13, Status.SOLVED), (-1e-6, Status.STATIONARY)])
+def test_a_line_search_stall_is_a_stationary_point_only_where_the_slope_is_negligible(relative_slope, status):
+    """A penalized round stops where its line search finds no decrease: at a stationary point of
+    𝒥 + λ·I (so `solved` where I ≤ tol and the checks pass) where the step's slope is within
+    descent.STALL_SLOPE of the objective (at λ ~ 1e9 the model's slope is λ-amplified rounding),
+    else `stationary`, not an optimum."""
+    model = _PlusOne()
+    solved = qdframe.solve(model, nodes=101, estimate=False)
+    functional = Functional(model, Grid(model.T, 101, model.default_scheme))
+    start = functional.pack(solved.x, solved.z, None, solved.selections)
+    objective = functional.objective(start)
+    assert objective > DescentOptions().tol  # the cost ≈ T keeps it above tol
+    result = descend(functional, _Stall(relative_slope * objective), make_line_search("armijo"), DescentOptions(),
+                     start=start)
+    assert result.status == status
+    assert result.options["stationary_point"] == (status == Status.SOLVED)
