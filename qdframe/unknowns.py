@@ -309,11 +309,8 @@ class Unknowns(InclusionModel):
         return dataclasses.replace(term, amplitude=amplitude, switch=self._switch(term.switch))
 
     def _still(self, coord: int) -> SetBlock:
-        """σ' = 0."""
-        def zero(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return np.zeros(y.shape[0]), np.zeros((y.shape[0], self.width))
-
-        return SetBlock.equation(coord, zero, name=f"{self.state_names[coord]}' = 0")
+        """σ' = 0: a block without pieces, F_b = {0}."""
+        return SetBlock((coord,), name=f"{self.state_names[coord]}' = 0")
 
     def _resolved(self, i: int, j: int) -> SetBlock:
         """x_i' = x_j becomes X_i' = T·X_j on the scaled time."""

@@ -54,6 +54,9 @@ class Skeleton:
         self.constant_mask = np.zeros(n, dtype=bool)  # … and which
         self.columns = self._constant_columns()
         self.R = None if self.columns is None else self._reduction()
+        cut = 0 if self.R is None else self.R.shape[1] - self.constant
+        # per constant state, 1.0 on the columns R maps to its unknown (:meth:`split`)
+        self.indicators = [(self.columns == cut + j).astype(float) for j in range(self.constant)]
         self.reduced_damping = None  # R·W: the L² weights (:meth:`LinearizedSystem.damping`) on the reduced columns
         if self.R is not None:
             weights = np.zeros((nodes, self.width))
@@ -105,10 +108,8 @@ class Skeleton:
         rows = matrix.shape[0]
         sparse = sp.csr_matrix((matrix.data[inner], target[inner], running[matrix.indptr]), shape=(rows, cut))
         sparse.has_sorted_indices = True
-        outer = target >= cut  # the constant states' entries, summed per row (the same cumulative count)
-        np.cumsum(outer, out=running[1:])
-        dense = sp.csr_matrix((matrix.data[outer], target[outer] - cut, running[matrix.indptr]),
-                              shape=(rows, self.constant)).toarray()
+        # the constant states' entries summed per row: matrix times each one's indicator of columns
+        dense = np.stack([matrix @ indicator for indicator in self.indicators], axis=1)
         return sparse, dense
 
     def reduced(self, matrix: sp.spmatrix) -> tuple[sp.csr_matrix, np.ndarray]:
