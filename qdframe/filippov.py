@@ -149,6 +149,11 @@ def velocity(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int
 MOVING, LEAVING = 2, 3  # a vector sign's mode (on each of its columns): λ = s/|s|, and leaving s = 0; 0: stuck
 RELEASE_RADIUS = 1e-7  # a leaving vector sign moves by s/|s| once |s| ≥ this·max(1, |x|) (quasi-static before)
 STIFF_RADIUS = 1e-3  # a vector sign that moves from |s| below this·max(1, |x|): the piece is stiff (_method)
+# a moving vector sign whose |s| falls to REACH_ATOLS·atol (at most STOP_TOL/2, relative to max(1, |x|))
+# is at a stop, which the mode choice confirms or not: below a few atol DOP853's steps no longer
+# follow s/|s| and can circle s = 0 without ⟨s, aim⟩ ever reaching 0 (an elliptic puck at rtol =
+# atol = 1e-12 on an AVX-512 CPU: |s| ≈ 5e-12 for ever, steps of 1e-15 s)
+REACH_ATOLS = 100.0
 STOP_TOL = 1e-8  # a moving vector sign's ⟨s, aim⟩ = 0 with |s| ≤ this·max(1, |x|) is a stop (else a new aim)
 
 
@@ -336,7 +341,9 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     A vector sign (the system's `balls`) that moves ends its piece where ⟨s, aim⟩ reaches 0,
     aim the direction of s when the piece began: a stop where |s| ≈ 0 there (|s| → 0 along
     a line through 0), else the direction has turned (also ended where it turns by 60°), and
-    the piece goes on with a new aim. Stuck, it ends where |λ_eq| reaches 1 (break-away);
+    the piece goes on with a new aim; and where |s| falls to REACH_ATOLS·atol, from where it
+    is carried on at its present rate to |s| = 0 (:func:`_to_rest`). A stop that sticks puts
+    x on s = 0 (:func:`_onto_rest`), which the stuck mode then keeps. Stuck, it ends where |λ_eq| reaches 1 (break-away);
     then it leaves in its quasi-static direction until |s| = RELEASE_RADIUS·max(1, |x|), and
     moves by s/|s| from there (the first-order agreement of the two keeps the error of that
     start at O(τ³) in s', τ the time it takes), by Radau IIA while s/|s| is stiff
@@ -361,7 +368,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         current, aimed = mode, dict(aims)
         scale = max(1.0, float(np.max(np.abs(x), initial=0.0)))
         method, until = _method(fields(inside(t), x), current, balls, scale, aimed, t, left)
-        watched = _events(fields, current, inside, balls, aimed, scale)
+        watched = _events(fields, current, inside, balls, aimed, scale, min(REACH_ATOLS * atol, STOP_TOL / 2) * scale)
         run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, min(until, stop)),
                         x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched])
         if run.status == -1:
@@ -388,8 +395,14 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
                                   balls=balls, aims=aims)
             elif kind == "cross":
                 new = choose_mode(here, x, mode, crossed=i, name=system.name, t=t, balls=balls, aims=aims)
-            elif kind in ("ball-stop", "ball-aim") and np.linalg.norm(here.s[i : i + _width(balls, i)]) <= STOP_TOL * near:
+            elif kind in ("ball-stop", "ball-aim", "ball-reach") and np.linalg.norm(
+                    here.s[i : i + _width(balls, i)]) <= STOP_TOL * near:
+                if kind == "ball-reach":  # |s| at a few atol: on to where it reaches 0 at its present rate
+                    t, x = _to_rest(here, x, t, stop, mode, balls, aims, i)
+                    here = fields(_inside(t, stop)(t), x)
                 new = choose_mode(here, x, mode, crossed=i, name=system.name, t=t, balls=balls, aims=aims)
+                if new[i] == 0:  # stuck: on s = 0 itself, which the stuck mode keeps (not at the |s| it stopped at)
+                    x = _onto_rest(here, x, i, _width(balls, i))
             elif kind == "ball-release":
                 new = choose_mode(here, x, mode, released=(i, LEAVING), name=system.name, t=t, balls=balls, aims=aims)
             elif kind == "ball-grown":
@@ -416,6 +429,34 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         raise FilippovError(f"{system.name}: nothing integrated over [{t0}, {T}]")
     return FilippovTrajectory(np.array(starts), pieces, tuple(switches), modes, T, events,
                               time.perf_counter() - clock)
+
+
+def _to_rest(fields: Fields, x: np.ndarray, t: float, stop: float, mode: tuple[int, ...],
+             balls: Sequence[tuple[int, int]], aims: dict[int, np.ndarray], first: int) -> tuple[float, np.ndarray]:
+    """(t, x) moved on along the motion to where the vector sign's |s| reaches 0 at its present
+    rate (first order: exact where s approaches 0 along a line), within the piece."""
+    k = _width(balls, first)
+    try:
+        f = velocity(fields, mode, balls, aims)[0]
+    except np.linalg.LinAlgError:
+        return t, x
+    part = fields.s[first : first + k]
+    radius = float(np.linalg.norm(part))
+    rate = float(part @ (fields.ds[first : first + k] @ f)) / radius if radius > 0 else 0.0
+    if not rate < 0:
+        return t, x
+    tau = min(radius / -rate, np.nextafter(stop, t) - t)
+    return t + tau, x + tau * f
+
+
+def _onto_rest(fields: Fields, x: np.ndarray, first: int, k: int) -> np.ndarray:
+    """x moved least onto s_a = 0 (a, the k switches of a vector sign from `first`): one
+    Gauss–Newton step, exact for a switch linear in x (a velocity, W·v)."""
+    rows = fields.ds[first : first + k]
+    try:
+        return x - rows.T @ np.linalg.solve(rows @ rows.T, fields.s[first : first + k])
+    except np.linalg.LinAlgError:
+        return x
 
 
 def _after(stops: list[float], t: float, default: float | None = None) -> float:
@@ -478,8 +519,9 @@ def _aims(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]],
 
 def _events(fields: _Cached, mode: tuple[int, ...], inside: Callable[[float], float],
             balls: Sequence[tuple[int, int]] = (), aims: dict[int, np.ndarray] | None = None,
-            scale: float = 1.0) -> list[tuple[Callable, tuple[str, int]]]:
-    """The terminal events of a piece in `mode`, each with (its kind, its switch)."""
+            scale: float = 1.0, reach: float = 0.0) -> list[tuple[Callable, tuple[str, int]]]:
+    """The terminal events of a piece in `mode`, each with (its kind, its switch); a moving
+    vector sign stops where ⟨s, aim⟩ reaches 0 or |s| falls to `reach`."""
     out: list[tuple[Callable, tuple[str, int]]] = []
     ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
     for i, m in enumerate(mode):
@@ -510,9 +552,13 @@ def _events(fields: _Cached, mode: tuple[int, ...], inside: Callable[[float], fl
                 part = fields(inside(t), x).s[a : a + k]
                 return float(part @ aim - 0.5 * np.linalg.norm(part))
 
+            def reaching(t: float, x: np.ndarray, a: int = a, k: int = k) -> float:
+                return float(np.linalg.norm(fields(inside(t), x).s[a : a + k])) - reach
+
             stopping.terminal, stopping.direction = True, -1.0
             turning.terminal, turning.direction = True, -1.0
-            out += [(stopping, ("ball-stop", a)), (turning, ("ball-aim", a))]
+            reaching.terminal, reaching.direction = True, -1.0
+            out += [(stopping, ("ball-stop", a)), (turning, ("ball-aim", a)), (reaching, ("ball-reach", a))]
         elif mode[a] == 0:
             def breaking(t: float, x: np.ndarray, a: int = a) -> float:
                 try:
