@@ -277,9 +277,11 @@ def _line_search(functional: Functional, search: LineSearch, xi: np.ndarray, ste
     ray = functional.ray(xi, step)
 
     def along(gamma: float) -> float:
-        """The objective at ξ + γG; +inf (no decrease) where the model is NaN/inf."""
+        """The objective at ξ + γG; +inf (no decrease) where the model is NaN/inf (the trial is
+        recorded and the result's remarks count it: NumPy's overflow warnings would only repeat it)."""
         try:
-            value = ray(gamma)
+            with np.errstate(over="ignore", invalid="ignore"):
+                value = ray(gamma)
         except ModelOutputError as exc:
             if not exc.nonfinite:
                 raise
