@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from qdframe.bench.unknown_cost import per_iteration, run, table
 from qdframe.registry import load_model
 from qdframe.unknowns import Unknowns, restated
@@ -23,3 +25,18 @@ def test_run_and_table():
     assert cell.columns == (5, 7) and cell.fixed > 0 and cell.unknown > 0
     text = table(cells)
     assert "block-stopping-time | 201 |" in text and "5 → 7" in text
+
+
+def test_a_timed_iteration_can_be_repeated_from_the_same_state():
+    """Each repeat times the same work: timing leaves the iterate and the solver's state (μ, the
+    active set) as they were, and `advance` then takes that iteration."""
+    from qdframe.bench.unknown_cost import _Iterates
+
+    run = _Iterates(Unknowns(load_model("block-friction-coefficient")), 101)
+    run.advance()
+    xi, state = run.xi.copy(), dict(run.solver._state)
+    assert run.timed() > 0 and run.timed() > 0
+    assert np.array_equal(run.xi, xi) and run.solver._state["mu"] == state["mu"]
+    assert run.solver._state["active_set"] is state["active_set"]
+    run.advance()
+    assert not np.array_equal(run.xi, xi)
