@@ -176,3 +176,16 @@ def test_the_relay_oscillator_is_solved_by_default():
     its parabolic arcs."""
     result = qdframe.solve("relay-oscillator")
     assert result.solved and result.solution_error <= result.error_estimate <= 1e-6
+
+
+def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line():
+    """paper-7.3 on 11 implicit-Euler points: from the paper's first approximation (x ≡ 0)
+    gauss-newton stops at a local minimum of I; the grids solved again from the straight line
+    between the given ends (x(0) held, x3 drawn to x3(T) = 0) solve the discrete problem, and
+    the result says so. Its history runs on from the first run's."""
+    result = qdframe.solve("paper-7.3", nodes=11, estimate=False)
+    assert result.options["start"] == "straight line" and result.I <= 1e-20
+    assert all(check["value"] <= check["tol"] for check in result.checks.values())
+    iterations = [record.iteration for record in result.history]
+    assert iterations == sorted(iterations) and iterations[-1] == result.iterations
+    assert "straight line" not in qdframe.solve("paper-7.3", nodes=21, estimate=False).options["start"]  # no stall
