@@ -20,9 +20,11 @@ GAP_FRACTION·target, the worst check ÷ its tolerance, √(I ÷ tol)), between 
 MAX_RAISE, and made at least 1/(GAP_FRACTION·target) (the gap is c/λ: c = 1 is the first
 guess), until a round is solved with the gap within GAP_FRACTION of the target (or λ would
 pass MAX_PENALTY: the result says so). A round starts from the last one's trajectory where
-that one is on the path x_λ → x* (its gap at most WARM_SHARE of its cost), else from the
-model's start: a small λ can make the cost win outright (a shortest time at λ = 1 shrinks T
-towards 0 with the block at rest), and the path does not lead back from there.
+that one is on the path x_λ → x* (its gap at most WARM_SHARE of its cost), else afresh from
+the straight line between the given ends (:func:`qdframe.start.straight_guess`): a small λ
+can make the cost win outright (a shortest time at λ = 1 shrinks T towards 0 with the block
+at rest), and the path does not lead back from there; and from the model's start at rest a
+round can stop on a stuck phase (a block with |u| ≤ 1.5: I = 0.12).
 The descent ends such a round `solved` at a stationary point of 𝒥 + λ·I with I ≤ tol and
 every check passed (:func:`qdframe.descent._penalized_optimum`).
 
@@ -43,6 +45,7 @@ import numpy as np
 
 from .estimates import observed_difference
 from .model import InclusionModel
+from .start import straight_guess
 from .status import Status
 
 if TYPE_CHECKING:
@@ -74,6 +77,8 @@ def penalized(model: InclusionModel, weight: float, previous: SolveResult | None
     out = copy.copy(model)
     cost = model.cost()
     out.cost = lambda: dataclasses.replace(cost, weight=float(weight))  # type: ignore[method-assign]
+    if previous is None and len(model.end_indices):  # a fresh start: the straight line between the given ends
+        out.initial_guess = lambda times: straight_guess(model, times)  # type: ignore[method-assign]
     if previous is not None:
         t, x, z = np.asarray(previous.t, float), np.asarray(previous.x, float), np.asarray(previous.z, float)
         u = None if previous.u is None else np.asarray(previous.u, float)

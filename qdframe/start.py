@@ -122,16 +122,22 @@ class LineStarts(Starts):
 
 
 def straight_line(functional: Functional) -> np.ndarray | None:
-    """A generic start on `functional`'s grid: every state whose x_i(0) is given held at it
-    (z_i = 0), and every state with an end value drawn straight from its start value to it (z
-    its slope); the model's own guess elsewhere (a free x_i(0), a constant state). None where
-    the model gives no end value. The second start where the model's own ends at a local
-    minimum of I: paper-7.3's (the paper's x ≡ 0) stops at I = 1.4e-5 on 11 points, this
-    one is solved in 4 iterations."""
+    """ξ of :func:`straight_guess` on `functional`'s grid (the model's controls); None where the
+    model gives no end value. The second start where the model's own ends at a local minimum
+    of I: paper-7.3's (the paper's x ≡ 0) stops at I = 1.4e-5 on 11 points, this one is
+    solved in 4 iterations."""
     model = functional.model
     if not len(model.end_indices):
         return None
     t = functional.grid.t
+    x, z = straight_guess(model, t)
+    return functional.pack(x, z, np.asarray(model.initial_controls(t), dtype=float))
+
+
+def straight_guess(model, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(x, z) at the times t: every state whose x_i(0) is given held at it (z_i = 0), and every
+    state with an end value drawn straight from its start value to it (z its slope); the
+    model's own guess elsewhere (a free x_i(0), a constant state)."""
     x, z = (np.array(part, dtype=float) for part in model.initial_guess(t))
     given = np.isfinite(model.x0)
     x[:, given], z[:, given] = model.x0[given], 0.0
@@ -139,7 +145,7 @@ def straight_line(functional: Functional) -> np.ndarray | None:
     for j, value in zip(model.end_indices, model.end_values):
         x[:, j] = x[0, j] + (value - x[0, j]) * (t - t[0]) / span
         z[:, j] = (value - x[0, j]) / span
-    return functional.pack(x, z, np.asarray(model.initial_controls(t), dtype=float))
+    return x, z
 
 
 def _turning(x: np.ndarray) -> float:
