@@ -116,6 +116,7 @@ class KKTSolver:
         self._factor_nnz = 0
         self._reuse = True  # False once a reused order filled in past REANALYSE_GROWTH
         self.analyses = 0  # how many fill-reducing orders were computed (for tests and benchmarks)
+        self._triplets: dict[str, np.ndarray] = {}  # _assemble's (row, col, data) arrays, kept between systems
         self.factorizations = 0
 
     def solve(self, hessian: sp.spmatrix, constraints: sp.spmatrix, gradient: np.ndarray,
@@ -191,7 +192,7 @@ class KKTSolver:
             self._rows, self._order = _matching(constraints, size), None
         rows = self._rows  # an involution: each matched pair trades places, so it is its own inverse
         order, gather = self._order, self._gather
-        kkt = _assemble(hessian, constraints, rows, order, soft)
+        kkt = _assemble(hessian, constraints, rows, order, soft, self._triplets)
         self.factorizations += 1
         if order is None:  # the analysis: SuperLU's COLAMD on the matched matrix, kept for later systems
             factor = _factor(kkt, "COLAMD")
@@ -298,10 +299,13 @@ def _without(matrix: sp.spmatrix, keep: np.ndarray, position: np.ndarray | None,
 
 
 def _assemble(hessian: sp.spmatrix, constraints: sp.csr_matrix, rows: np.ndarray,
-              order: np.ndarray | None, soft: np.ndarray | None = None) -> sp.csc_matrix:
+              order: np.ndarray | None, soft: np.ndarray | None = None,
+              kept: dict[str, np.ndarray] | None = None) -> sp.csc_matrix:
     """The KKT matrix with row r at rows[r], and then, given an order, rows and columns
     permuted symmetrically by it (entry (a, b) of the result: entry (order[a], order[b])
-    of the matched matrix), built once from triplets (no intermediate block copies)."""
+    of the matched matrix), built once from triplets (no intermediate block copies). `kept`:
+    the triplet arrays of the last system, reused where they are large enough (the systems of
+    a solve have about the same size: no memory paged in afresh for each)."""
     size = hessian.shape[0]
     h = sp.coo_matrix(hessian)
     c = constraints.tocoo()
@@ -319,9 +323,20 @@ def _assemble(hessian: sp.spmatrix, constraints: sp.csr_matrix, rows: np.ndarray
         row.append(row_at[size + i])
         col.append(col_at[size + i])
         data.append(-soft[i])
-    row, col, data = np.concatenate(row), np.concatenate(col), np.concatenate(data)
+    row, col, data = (_joined(parts, name, kept) for parts, name in ((row, "row"), (col, "col"), (data, "data")))
     del h, c
     return sp.csc_matrix((data, (row, col)), shape=(total, total))
+
+
+def _joined(parts: list[np.ndarray], name: str, kept: dict[str, np.ndarray] | None) -> np.ndarray:
+    """np.concatenate(parts), into kept[name] where that is large enough (grown otherwise)."""
+    size = sum(part.size for part in parts)
+    if kept is None:
+        return np.concatenate(parts)
+    store = kept.get(name)
+    if store is None or store.size < size or store.dtype != parts[0].dtype:
+        store = kept[name] = np.empty(size + size // 8, dtype=parts[0].dtype)
+    return np.concatenate(parts, out=store[:size])
 
 
 def _factor(kkt: sp.csc_matrix, ordering: str):
