@@ -19,7 +19,6 @@ from qdframe.grid import Grid
 from qdframe.model import Cost
 from qdframe.models.paper import Paper71
 from qdframe.registry import make_line_search
-from qdframe.sets import Interval, SetModel, Sgn
 from qdframe.models.identification import BlockTimeOptimal
 from qdframe.status import Status
 
@@ -120,29 +119,13 @@ def test_a_line_search_stall_is_a_stationary_point_only_where_the_slope_is_negli
     assert result.options["stationary_point"] == (status == Status.SOLVED)
 
 
-class _FastestMove(SetModel):
-    """A user's time-optimal block: rest at 0 to rest at 5 with |u| ≤ 2 against friction 1 (full
-    force until 0.75·T*, then full force back: T* = √7.5·(1 + 1/3) = √(40/3))."""
-
-    name = "fastest-move"
-    state_names = "p v"
-    default_x0 = (0.0, 0.0)
-    default_xT = {"p": 5.0, "v": 0.0}
-    default_T = 2.0
-    free_T = True
-
-    def sets(self, p, v):
-        return {p: v, v: Interval(-2, 2) - Sgn(v)}
-
-    def running_cost(self, p, v):
-        return 1.0 + 0 * p
-
-
 def test_a_fresh_round_starts_from_the_straight_line_between_the_given_ends():
     """A round that does not continue the last one's path starts from the straight line (x(0)
     held, p drawn to p(T)): from the model's start at rest the second round of this block
-    stopped on a stuck phase (`stationary`, T = 5.06 against T* = 3.65)."""
-    model = _FastestMove()
+    stopped on a stuck phase (`stationary`, T = 5.06 against T* = 3.65). The block of
+    block-time-optimal moved to p = 5 instead of 1 (full force until 0.75·T*, then full force
+    back: T* = √7.5·(1 + 1/3) = √(40/3))."""
+    model = BlockTimeOptimal(end_values=(5.0, 0.0))
     t = np.linspace(0.0, 2.0, 5)
     x, z = optimum.penalized(model, 1e7, None).initial_guess(t)
     assert np.allclose(x[:, 0], 2.5 * t) and np.allclose(z[:, 0], 2.5) and not x[:, 1].any()

@@ -186,6 +186,8 @@ class LinearizedSystem:
         blocks = functional.distance_sides(xi)
         self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
         # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
+        # the constant states whose own rows vanish on the reduced columns (with x_i(t_0) given they do not)
+        self._own_states = skeleton.constant_mask & ~functional.start_given
         self._still_entries: list[Callable[[], tuple[np.ndarray, np.ndarray]]] = []  # their rows' (:meth:`still`)
         self._still: sp.csr_matrix | None = None
         self.residual, self.jacobian, self.still_residual = self._least_squares(
@@ -244,7 +246,7 @@ class LinearizedSystem:
         rows = RowBlocks(self.size)  # exactly-zero entries left out (:mod:`.sparse_rows`)
         residuals: list[np.ndarray] = []
         still_residuals: list[np.ndarray] = []
-        constant = self.skeleton.constant_mask & ~f.start_given  # with x_i(t_0) given the rows do not vanish
+        constant = self._own_states
 
         def add(res: np.ndarray, col: np.ndarray, val: np.ndarray) -> None:
             """res: (R,), col/val: (R, E) entries of R new rows."""
@@ -325,14 +327,14 @@ class LinearizedSystem:
             self._still = rows.matrix()
         return self._still
 
-    def _still_moves(self, d: np.ndarray | None = None) -> bool:
+    def _still_moves(self, d: np.ndarray) -> bool:
         """Whether the constant states' own rows count: their residuals are not all 0, or `d`
         is not on the reduced columns (a constant state's step unlike at some node, or its z or Z moved)."""
         if not self._still_entries:
             return False
-        if np.any(self.still_residual) or d is None:
+        if np.any(self.still_residual):
             return True
-        for i in np.flatnonzero(self.skeleton.constant_mask & ~self.f.start_given):
+        for i in np.flatnonzero(self._own_states):
             if np.any(d[self.x_cols()[:, i]] != d[self.x_cols()[0, i]]) or np.any(d[self.z_cols()[:, i]]) \
                     or np.any(d[self.Z_cols()[:, i]]):
                 return True
