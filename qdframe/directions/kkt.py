@@ -24,9 +24,12 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   one solve): each reuse is a numerical factorization only. A reused order whose factors
   grow past `REANALYSE_GROWTH` times the analysed ones (SuperLU's pivots left the diagonal
   it was analysed for) is not reused again in that solve: every later system is analysed
-  afresh, which costs a COLAMD per system and not a fill-in 10× the fresh one. (gauss-newton
-  keeps C's pattern through its guesses: a cost piece that leaves the tie keeps its row,
-  with zero coefficients.)
+  afresh, which costs a COLAMD per system and not a fill-in 10× the fresh one. A system
+  with more than `REUSE_ENTRIES` times the analysed one's entries is analysed afresh before
+  it is factored: another H pattern (the exact selections' rows after a band start on
+  paper-7.3 at N = 1001: 1.9× the entries) filled in 9e7 under the band's order, 154 s
+  against 0.02 s fresh. (gauss-newton keeps C's pattern through its guesses: a cost piece
+  that leaves the tie keeps its row, with zero coefficients.)
 * **Dense columns bordered.** A free start value x_i(0), an unknown parameter or a free T
   (:mod:`qdframe.unknowns`) is a column of H with an entry in every node's υ row. Factored
   in place, SuperLU's fill depends on whether its diagonal pivot is accepted: on a block
@@ -58,6 +61,7 @@ from ..errors import BackendError
 PIVOT_THRESHOLD = 0.1  # SuperLU's diag_pivot_thresh: a diagonal pivot within 1/10 of the column's largest
 MATCH_FRACTION = 0.5  # a constraint row is matched to a column holding at least half its largest entry
 REANALYSE_GROWTH = 1.5  # a reused order whose L + U outgrow the analysed ones by this is recomputed
+REUSE_ENTRIES = 1.2  # a system with more entries than this times the analysed one's is analysed afresh
 PANEL_SIZE = 1  # SuperLU's panel width (its default 10 costs time and memory on these short columns)
 DENSE_FACTOR = 10  # a Hessian column with more than this ·√size entries is bordered (_dense_columns) …
 DENSE_MIN = 1000  # … and more than this many
@@ -114,6 +118,7 @@ class KKTSolver:
         self._order: np.ndarray | None = None  # the column (and row) order of the matched matrix
         self._gather: np.ndarray | None = None  # rows[order]: the row of K at each place of the ordered matrix
         self._factor_nnz = 0
+        self._entries = 0  # K's entries at the analysis (H's and C's twice, as assembled)
         self._reuse = True  # False once a reused order filled in past REANALYSE_GROWTH
         self.analyses = 0  # how many fill-reducing orders were computed (for tests and benchmarks)
         self._triplets: dict[str, np.ndarray] = {}  # _assemble's (row, col, data) arrays, kept between systems
@@ -191,6 +196,9 @@ class KKTSolver:
             self._key = (size, constraints.indptr.copy(), constraints.indices.copy())
             self._rows, self._order = _matching(constraints, size), None
         rows = self._rows  # an involution: each matched pair trades places, so it is its own inverse
+        entries = hessian.nnz + 2 * constraints.nnz
+        if self._order is not None and entries > REUSE_ENTRIES * self._entries:  # another H pattern: not its order
+            self._order = None
         order, gather = self._order, self._gather
         kkt = _assemble(hessian, constraints, rows, order, soft, self._triplets)
         self.factorizations += 1
@@ -199,6 +207,7 @@ class KKTSolver:
             self._order = np.argsort(factor.perm_c) if self._reuse else None
             self._gather = None if self._order is None else rows[self._order]  # K's row at each place
             self._factor_nnz = factor.nnz  # L + U (not .L, .U: those build copies)
+            self._entries = entries
             self.analyses += 1
             return lambda right: _permuted_solve(factor, right, rows, None)
         factor = _factor(kkt, "NATURAL")

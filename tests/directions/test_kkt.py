@@ -7,7 +7,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import qdframe
-from qdframe.directions.kkt import KKTSolver, solve_kkt
+from qdframe.directions.kkt import REUSE_ENTRIES, KKTSolver, solve_kkt
 from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
 from qdframe.grid import Grid
@@ -66,8 +66,11 @@ def test_solution_equals_a_dense_solve(seed, singular):
 
 
 def test_reused_analysis_solves_later_systems():
-    """One KKTSolver over systems with the same constraints and new H values (and a new H
-    pattern): one analysis, every solution equal to a fresh factorization's."""
+    """One KKTSolver over systems with the same constraints and new H values: one analysis,
+    every solution equal to a fresh factorization's. An H with many more entries (another
+    pattern: a band start's order on the exact selections' rows filled in 9e7 entries on
+    paper-7.3) is analysed afresh before it is factored, and its order then serves the
+    sparser systems that follow; another shape is analysed afresh."""
     rng = np.random.default_rng(3)
     solver = KKTSolver()
     hessian, constraints, gradient, rhs = chain_system(rng, 40, singular=True)
@@ -76,14 +79,18 @@ def test_reused_analysis_solves_later_systems():
         d, nu = solver.solve(hessian, constraints, gradient, rhs)
         d_ref, nu_ref = dense_kkt(hessian, constraints, gradient, rhs)
         assert np.allclose(d, d_ref, rtol=1e-9, atol=1e-11) and np.allclose(nu, nu_ref, rtol=1e-9, atol=1e-11)
+    assert solver.analyses == 1 and solver.factorizations == 3
     extra = sp.random(hessian.shape[0], hessian.shape[0], density=0.02, random_state=4)
-    d, nu = solver.solve((hessian + extra @ extra.T).tocsc(), constraints, gradient, rhs)
-    d_ref, nu_ref = dense_kkt((hessian + extra @ extra.T).tocsc(), constraints, gradient, rhs)
-    assert np.allclose(d, d_ref, rtol=1e-9, atol=1e-11)
-    assert solver.analyses == 1 and solver.factorizations == 4
+    denser = (hessian + extra @ extra.T).tocsc()
+    assert denser.nnz > REUSE_ENTRIES * hessian.nnz
+    for system in (denser, hessian):
+        d, nu = solver.solve(system, constraints, gradient, rhs)
+        d_ref, nu_ref = dense_kkt(system, constraints, gradient, rhs)
+        assert np.allclose(d, d_ref, rtol=1e-9, atol=1e-11)
+    assert solver.analyses == 2 and solver.factorizations == 5  # the denser analysed, the sparser reusing its order
     other = chain_system(rng, 41, singular=True)  # another shape: analysed afresh
     solver.solve(*other)
-    assert solver.analyses == 2
+    assert solver.analyses == 3
 
 
 @pytest.mark.parametrize("name", ["paper-7.2", "paper-7.3"])
