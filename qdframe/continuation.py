@@ -74,45 +74,10 @@ def interpolate(functional: Functional, previous: SolveResult) -> np.ndarray:
             return out
 
     u = None if previous.u is None else velocity(previous.u)
-    x, z = position(previous.x), velocity(previous.z)
-    if previous.selections is None:  # a band start's (or no) selections: the band's, or those its z implies
-        return _lower(functional, functional.pack(x, z, u), fitted_selections)
-    selections = velocity(previous.selections)
-    if source is not None:  # a polynomial may overshoot [−1, 1]
+    selections = None if previous.selections is None else velocity(previous.selections)
+    if selections is not None and source is not None:  # a polynomial may overshoot [−1, 1]
         selections = np.clip(selections, -1.0, 1.0)
-    return functional.pack(x, z, u, selections)
-
-
-def fitted_selections(functional: Functional, xi: np.ndarray) -> np.ndarray:
-    """ξ with each selection λ that is its equation block's only one set to the value that
-    meets the block's equation z_b = f_b(y) + sense·a(y)·λ, clipped to [−1, 1]: the choice
-    a velocity z already made (ℓ is affine in λ: λ − ℓ/(∂ℓ/∂λ)). A band start's z carries
-    its choice, where the band's own selection clip(s/β) does not (β = inf: 0, whatever z
-    is): on paper-7.3 the band start's x and z, with the selections they imply, are an
-    exact solution (I = 2.6e-23 against 4.0 with the band's)."""
-    if not functional.p:
-        return xi
-    xi = xi.copy()
-    first, args = functional.dim - functional.p, functional.args  # λ's first column in ξ and in y = (x, u, λ)
-    for sides in functional.distance_sides(xi):
-        if not sides.equation:
-            continue
-        ell, grad, _ = sides.sides[0]
-        slope = grad[:, args:]
-        own = np.flatnonzero(np.any(slope != 0.0, axis=0))
-        if own.size != 1:  # no selection, or a vector sign's several: left as they are (a shared one: the last block's)
-            continue
-        k = own[0]
-        moving = slope[:, k] != 0.0
-        column = xi[:, first + k]
-        column[moving] = np.clip(column[moving] - ell[moving] / slope[moving, k], -1.0, 1.0)
-    return xi
-
-
-def _lower(functional: Functional, xi: np.ndarray, change) -> np.ndarray:
-    """ξ or change(functional, ξ), whichever has the lower objective (ξ on a tie)."""
-    other = change(functional, xi)
-    return other if functional.objective(other) < functional.objective(xi) else xi
+    return functional.pack(position(previous.x), velocity(previous.z), u, selections)  # λ None: the band's
 
 
 def _source_grid(previous: SolveResult) -> Grid | None:

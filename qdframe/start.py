@@ -31,7 +31,6 @@ from .functional import Functional
 from .grid import Grid
 
 MODEL, SIMULATED, LINE = "model", "simulated", "straight line"
-NO_BAND = "model, no band start"  # the model's start with the exact signs from the first iteration (qdframe.solving)
 SHOOTING_EVALUATIONS = 40  # motions integrated at most while shooting for free x(0) values
 SIMULATION_TOL = 1e-10  # DOP853's rtol and atol for a start (the solve makes it exact)
 SIMULATION_SECONDS = 20.0  # a shooting search stops after this long, with what it has

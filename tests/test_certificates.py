@@ -14,7 +14,6 @@ from qdframe.model_system import model_system
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.models.exact_friction import BlockStopStick, block_stop_stick_motion
-from qdframe.models.paper_73 import Paper73
 from qdframe.start import Starts
 
 SIMULATED = ("block-stop-stick", "block-breakaway", "slide-on-line", "slide-after-reaching", "two-surface-sliding",
@@ -179,27 +178,14 @@ def test_the_relay_oscillator_is_solved_by_default():
     assert result.solved and result.solution_error <= result.error_estimate <= 1e-6
 
 
-class Paper73WithoutBands(Paper73):
-    """paper-7.3 posed with no C¹ band on its sign terms: the band start is the exact
-    set-valued problem itself (a user's choice; the inclusion is the same)."""
-
-    band = 0.0
-    surface_band = 0.0
-
-
-def test_a_stall_is_solved_again_without_the_band_start_then_from_the_straight_line():
-    """Where gauss-newton from the model's start stops at a local minimum of I, the grids
-    run again: on 21 points without the band start (the band's solution lies by a local
-    minimum, I = 8.8e-6; from the model's start the exact problem is solved), on 11 points
-    from the straight line between the given ends (x(0) held, x3 drawn to x3(T) = 0) after
-    both starts before it stalled. The result says which start it kept, and its history runs
-    on from the first runs'. The registered paper-7.3 stalls from neither."""
-    for nodes, start in ((21, "model, no band start"), (11, "straight line")):
-        result = qdframe.solve(Paper73WithoutBands(), nodes=nodes, estimate=False)
-        assert result.options["start"] == start and result.I <= 1e-18
-        assert all(check["value"] <= check["tol"] for check in result.checks.values())
-        iterations = [record.iteration for record in result.history]
-        assert iterations == sorted(iterations) and iterations[-1] == result.iterations
-    assert qdframe.solve("paper-7.3", nodes=11, estimate=False).options["start"] == "model"  # no stall
-
-
+def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line():
+    """paper-7.3 on 11 implicit-Euler points: from the paper's first approximation (x ≡ 0)
+    gauss-newton stops at a local minimum of I; the grids solved again from the straight line
+    between the given ends (x(0) held, x3 drawn to x3(T) = 0) solve the discrete problem, and
+    the result says so. Its history runs on from the first run's."""
+    result = qdframe.solve("paper-7.3", nodes=11, estimate=False)
+    assert result.options["start"] == "straight line" and result.I <= 1e-20
+    assert all(check["value"] <= check["tol"] for check in result.checks.values())
+    iterations = [record.iteration for record in result.history]
+    assert iterations == sorted(iterations) and iterations[-1] == result.iterations
+    assert "straight line" not in qdframe.solve("paper-7.3", nodes=21, estimate=False).options["start"]  # no stall

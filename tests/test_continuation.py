@@ -108,30 +108,6 @@ def test_an_iterate_round_trips_through_interpolation_on_its_own_grid():
     assert np.array_equal(interpolate(functional, iterate_view(functional, xi)), xi)
 
 
-def test_a_band_start_carries_the_selections_its_velocity_implies():
-    """paper-7.3's band start on 101 points: its x and z with the selections z implies
-    (`fitted_selections`) solve the exact problem; with the band's own clip(s/β) (β = inf on
-    the surface: 0) they are far from it. The exact stage starts there and takes no step."""
-    from qdframe.descent import DescentOptions, descend
-    from qdframe.continuation import fitted_selections
-    from qdframe.registry import make_direction, make_line_search
-
-    model = qdframe.load_model("paper-7.3")
-    band = Functional(model, Grid(model.T, 101, "implicit-euler"), signs="band")
-    exact = Functional(model, band.grid)
-    result = descend(band, make_direction("gauss-newton"), make_line_search("armijo"), DescentOptions(max_iter=10),
-                     None, band.initial_point())
-    assert result.I <= 1e-20 and result.selections is None
-    own = exact.pack(result.x, result.z, result.u)
-    fitted = fitted_selections(exact, own)
-    assert exact.objective(own) > 1.0 and exact.objective(fitted) <= 1e-20
-    assert np.array_equal(fitted[:, : exact.dim - exact.p], own[:, : exact.dim - exact.p])  # λ alone changed
-    assert np.all(np.abs(exact.selections(fitted)) <= 1.0)
-    assert np.array_equal(interpolate(exact, result), fitted)  # the carried start
-    solved = qdframe.solve(model, nodes=101, estimate=False)
-    assert solved.options["iterations_per_grid"] == [result.iterations]  # the exact stage: no step
-
-
 @pytest.mark.parametrize("nodes, grids", [(101, [101]), (1001, [101, 301, 1001])])
 def test_gauss_newton_solves_paper_71_on_its_first_grid(nodes, grids, certified):
     """7.1's solution x1 = 0, x2 = t is linear: solved on 101 nodes, its interpolation solves
