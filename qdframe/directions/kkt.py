@@ -26,10 +26,10 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   it was analysed for) is not reused again in that solve: every later system is analysed
   afresh, which costs a COLAMD per system and not a fill-in 10× the fresh one. A system
   with more than `REUSE_ENTRIES` times the analysed one's entries is analysed afresh before
-  it is factored: another H pattern (the exact selections' rows after a band start on
-  paper-7.3 at N = 1001: 1.9× the entries) filled in 9e7 under the band's order, 154 s
-  against 0.02 s fresh. (gauss-newton keeps C's pattern through its guesses: a cost piece
-  that leaves the tie keeps its row, with zero coefficients.)
+  it is factored: that is another pattern of H (the exact selections' rows after a band
+  start), whose fill under the old order REANALYSE_GROWTH would catch only after paying
+  for it (docs/benchmarks.md, "The KKT solve"). (gauss-newton keeps C's pattern through its
+  guesses: a cost piece that leaves the tie keeps its row, with zero coefficients.)
 * **Dense columns bordered.** A free start value x_i(0), an unknown parameter or a free T
   (:mod:`qdframe.unknowns`) is a column of H with an entry in every node's υ row. Factored
   in place, SuperLU's fill depends on whether its diagonal pivot is accepted: on a block
