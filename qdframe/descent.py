@@ -23,7 +23,7 @@ from .line_searches.base import LineSearch
 from .outcome import located, result_of
 from .result import IterationRecord, SolveResult
 from .status import Status
-from .steps import WATCHDOG_ROUNDS, WATCHDOG_STEPS, keep_start, watchdog
+from .steps import EAGER_ROUNDS, WATCHDOG_ROUNDS, WATCHDOG_STEPS, keep_start, watchdog
 
 ProgressCallback = Callable[[IterationRecord], None]
 
@@ -89,8 +89,11 @@ def descend(
     options: DescentOptions,
     progress: ProgressCallback | None = None,
     start: np.ndarray | None = None,
+    near_solution: bool = False,
 ) -> SolveResult:
-    """Run the descent from `start` (default: the model's initial guess).
+    """Run the descent from `start` (default: the model's initial guess); `near_solution`:
+    the start is a coarser grid's solution, where a Newton step the line search cuts is
+    first tried whole (:data:`qdframe.steps.EAGER_ROUNDS`).
 
     x(t_0) = x0 where given (a start's row 0 is set to it); a NaN/inf of the model at an
     iterate raises ModelOutputError with the state there (:func:`_located`), one at a
@@ -102,20 +105,14 @@ def descend(
     core (`qdframe bench scale`, docs/benchmarks.md).
     """
     with threadpool_limits(limits=1, user_api="blas"):
-        return _descend(functional, solver, search, options, progress, start)
+        return _descend(functional, solver, search, options, progress, start, near_solution)
 
 
 def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
-             progress: ProgressCallback | None, start: np.ndarray | None) -> SolveResult:
+             progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool) -> SolveResult:
     clock = time.perf_counter()
     solver.start(functional)
-    xi = functional.initial_point() if start is None else np.array(start, dtype=float)
-    given = functional.start_given
-    xi[0, : functional.n][given] = functional.model.x0[given]  # x0 is data, not an unknown: exactly
-    try:
-        terms = functional.terms(xi)
-    except ModelOutputError as exc:
-        raise located(functional, xi, exc, "the start") from exc
+    xi, terms = _started(functional, start)
     # the start's record at the time its terms are known, so that each later record's time
     # minus the one before is that iteration alone (`qdframe bench scale`'s s/iter)
     history = [_record(functional, 0, xi, terms, 0.0, None, float("nan"), clock)]
@@ -123,20 +120,22 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     rejected, rejected_label = 0, ""  # trial points where the model was NaN/inf, and the last piece named
     blocked: tuple[str, np.ndarray, ModelOutputError, str] | None = None  # where the model stops the descent
     uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
-    watchdogs = 0  # full-step rounds tried where the descent stalled (:func:`qdframe.steps.watchdog`)
+    # full-step rounds left (:func:`qdframe.steps.watchdog`): where the descent stalls, and
+    # (from a coarser grid's solution) where a line search cuts a Newton step
+    rounds = {False: WATCHDOG_ROUNDS, True: EAGER_ROUNDS if near_solution else 0}
     eps, delta = options.eps, options.delta  # shrunk where the iterate is ε-stationary but not solved
     window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
     optimal = False  # the stop is a stationary point of the objective (no decrease predicted, ε at the floor)
 
-    def escape() -> bool:
-        """Where the descent would stop `stationary`: a watchdog round of full steps (for a
-        solver whose steps are Newton steps, within the budget and WATCHDOG_ROUNDS); True
-        when it found a much lower iterate, which the descent continues from."""
-        nonlocal xi, terms, watchdogs
+    def escape(cut: bool = False) -> bool:
+        """A round of full steps (for a solver whose steps are Newton steps, within the budget)
+        where the descent would stop `stationary`, or with `cut` where the line search cut a
+        step; True when it found a much lower iterate, which the descent continues from."""
+        nonlocal xi, terms
         budget = options.max_iter - (len(history) - 1)
-        if not solver.full_steps or watchdogs >= WATCHDOG_ROUNDS or budget < 1:
+        if not solver.full_steps or budget < 1 or rounds[cut] < 1:
             return False
-        watchdogs += 1
+        rounds[cut] -= 1
         path = watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget))
         for point, step in path:
             xi, terms = point, functional.terms(point)
@@ -201,6 +200,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 status, message = Status.STATIONARY, "no step along the direction decreases the objective"
                 optimal = abs(direction.slope) <= STALL_SLOPE * abs(terms.objective)
                 break
+            if gamma < options.gamma_max and escape(cut=True):  # semismooth Newton's full steps may pass the kink
+                continue
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
                 blocked = (f"a line-search trial point of iteration {iteration}", xi + bad[-1].gamma * step,
                            bad[-1].error,
@@ -225,6 +226,18 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                        message, remarks, history, time.perf_counter() - clock)
     result.options["stationary_point"] = optimal  # of the objective: a higher penalty can move it (qdframe.optimum)
     return result
+
+
+def _started(functional: Functional, start: np.ndarray | None):
+    """The first iterate (the model's initial guess where no `start`), x(t_0) = x0 where
+    given, and its terms."""
+    xi = functional.initial_point() if start is None else np.array(start, dtype=float)
+    given = functional.start_given
+    xi[0, : functional.n][given] = functional.model.x0[given]  # x0 is data, not an unknown: exactly
+    try:
+        return xi, functional.terms(xi)
+    except ModelOutputError as exc:
+        raise located(functional, xi, exc, "the start") from exc
 
 
 def _remarks(options: DescentOptions, eps: float, delta: float, rejected: int, label: str) -> list[str]:

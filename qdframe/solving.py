@@ -308,7 +308,10 @@ def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
             budget = min(budget - 1, BAND_START_ITERATIONS)
         if budget <= 0 and not last:  # no iteration here: no result from this grid
             continue
-        label, start, from_stage = _lowest_start(plan.starts, functional, earlier)
+        label, start, source = _lowest_start(plan.starts, functional, earlier)
+        from_stage = source is not None
+        # a coarser grid's solution: its switches are a few nodes off here, which full steps pass
+        near = from_stage and getattr(source, "status", None) == Status.SOLVED and source.nodes < count
         if not history:
             first_start = label
         used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
@@ -322,7 +325,7 @@ def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
                                                          eps_floor=options.eps * COARSE_EPS_FACTOR)
         stage = dataclasses.replace(stage, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
-        result = descend(functional, plan.solver, plan.search, stage, shown, start)
+        result = descend(functional, plan.solver, plan.search, stage, shown, start, near_solution=near)
         shrunk_to.append((result.options["eps"], result.options["delta"]))
         history += [shift(record) for record in result.history]
         per_grid[index] += result.iterations
@@ -368,19 +371,19 @@ def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: Prog
                 run.shrunk_to + again.shrunk_to, LINE)
 
 
-def _lowest_start(starts: Starts, functional: Functional, earlier: list) -> tuple[str, np.ndarray, bool]:
+def _lowest_start(starts: Starts, functional: Functional, earlier: list) -> tuple[str, np.ndarray, SolveResult | None]:
     """The start of a grid: the lowest there of the earlier stages' iterates (the last one
     first on a tie) and the model's own start (or its simulated motion); its label, and
-    whether it came from a stage."""
+    the stage's result it came from (None: the model's start)."""
     label, start = starts.best(functional)
-    from_stage, lowest = False, np.inf
+    source, lowest = None, np.inf
     if earlier:
-        candidates = [interpolate(functional, source) for source in earlier] + [start]
+        candidates = [interpolate(functional, result) for result in earlier] + [start]
         for number, candidate in enumerate(candidates):
             value = functional.objective(candidate)
             if number == 0 or value < lowest:
-                start, lowest, from_stage = candidate, value, number < len(earlier)
-    return label, start, from_stage
+                start, lowest, source = candidate, value, earlier[number] if number < len(earlier) else None
+    return label, start, source
 
 
 def _not_worse_than_start(functional: Functional, plan: _Plan, result: SolveResult) -> SolveResult:

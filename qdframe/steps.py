@@ -1,5 +1,6 @@
 """A direction's step as the descent takes it: exact on the given x(t_0)
-(:func:`keep_start`), and full steps where the monotone descent stalled (:func:`watchdog`)."""
+(:func:`keep_start`), and full steps where the monotone descent stalled or cut a Newton
+step (:func:`watchdog`)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,13 @@ START_ROUNDING = 1e-9  # a direction's move of a given x(t_0), relative to max(1
 WATCHDOG_ROUNDS = 3
 WATCHDOG_STEPS = 6
 WATCHDOG_GAIN = 1e-2
+# and, in a descent that starts from a coarser grid's solution, once where the line search cuts a
+# Newton step (γ < γ̄): the same round from that iterate, nonmonotone as the technique is meant.
+# There the selections' kinks sit a few nodes from where the solution puts them, and a line search
+# lets semismooth Newton move them about one node per step; full steps move them all at once.
+# Not from other starts: far from a solution a full-step path can end at a degenerate member of
+# the solution set (a free period T → 0 on relay-period), and more rounds led descents astray.
+EAGER_ROUNDS = 1
 
 
 def keep_start(functional: Functional, solver: DirectionSolver, step: np.ndarray) -> np.ndarray:
@@ -47,7 +55,7 @@ def keep_start(functional: Functional, solver: DirectionSolver, step: np.ndarray
 
 def watchdog(functional: Functional, solver: DirectionSolver, xi: np.ndarray, objective: float,
              options: DescentOptions, steps: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Full steps from ξ where the monotone descent stalled (the watchdog technique of
+    """Full steps from ξ where the monotone descent stalled or cut a Newton step (the watchdog technique of
     Chamberlain, Powell, Lemaréchal and Pedersen, 1982): semismooth Newton next to a kink
     of the selections' natural map (a switch between two points of a fine grid) can need a
     step that raises I before the next ones lower it far below, which a line search that
@@ -55,8 +63,9 @@ def watchdog(functional: Functional, solver: DirectionSolver, xi: np.ndarray, ob
     reset), up to `steps` steps γ = 1: the path to the first solved iterate (I ≤ tol and
     every pointwise check passes), else to the lowest one if that is at most WATCHDOG_GAIN ×
     `objective`, else to the one with I ≤ tol whose pointwise checks are nearest their
-    tolerances if CERTIFY_SHRINK× nearer than at ξ, else an empty list (the descent stops
-    where it stalled)."""
+    tolerances if CERTIFY_SHRINK× nearer than at ξ, else an empty list, the solver's state
+    as it was (the descent stops where it stalled, or goes on as if not tried)."""
+    kept = solver.snapshot()
     solver.start(functional)
     path: list[tuple[np.ndarray, np.ndarray]] = []
     best, best_at = objective, 0
@@ -87,6 +96,7 @@ def watchdog(functional: Functional, solver: DirectionSolver, xi: np.ndarray, ob
         return path[:best_at]
     if nearer_at:  # I ≤ tol, the pointwise checks CERTIFY_SHRINK× nearer their tolerances
         return path[:nearer_at]
+    solver.restore(kept)
     return []
 
 

@@ -117,3 +117,31 @@ def test_gauss_newton_solves_paper_71_on_its_first_grid(nodes, grids, certified)
     assert result.solved and result.message.startswith("error estimate") and result.options["grids"] == grids
     first, *finer = result.options["iterations_per_grid"]
     assert first == result.iterations >= 1 and finer == [0] * (len(grids) - 1)
+
+
+def test_a_finer_grid_from_a_solved_coarser_one_passes_its_kinks_with_full_steps():
+    """paper-7.3 up the ladder 101, 301, 1001: on each finer grid the coarser solution's
+    stick/slip boundaries are a few nodes off, and a line search lets semismooth Newton move
+    them about one node per step. Where it cuts a step, a round of full steps moves them all
+    at once (steps.EAGER_ROUNDS); without it the finest grid took over 20 iterations."""
+    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False)
+    assert result.converged, result.message
+    first, *finer = result.options["iterations_per_grid"]
+    assert finer[-1] <= 8 and sum(finer) <= 12
+
+
+def test_a_round_of_full_steps_not_kept_leaves_the_solver_as_it_was():
+    """A watchdog round that finds no gain restores the solver's kept state (its damping, its
+    KKT analysis), so that a descent that tried it goes on as if it had not."""
+    from qdframe.descent import DescentOptions
+    from qdframe.registry import make_direction
+    from qdframe.steps import watchdog
+
+    functional = Functional(qdframe.load_model("paper-7.3"), Grid(1.0, 11, "implicit-euler"))
+    solver = make_direction("gauss-newton")
+    solver.start(functional)
+    xi = functional.initial_point()
+    solver.compute(functional, xi, 1e-3)
+    kept = solver.snapshot()
+    assert watchdog(functional, solver, xi, 0.0, DescentOptions(), 2) == []  # nothing is below an objective of 0
+    assert solver.snapshot().keys() == kept.keys() and all(solver.snapshot()[k] is v for k, v in kept.items())

@@ -103,7 +103,18 @@ class DirectionSolver(ABC):
 
     def start(self, functional: "Functional") -> None:
         """Called once before a descent on `functional` (and before a watchdog round of full steps:
-        steps.watchdog): reset any state kept between iterations."""
+        steps.watchdog): reset any state kept between iterations (rebind it, do not mutate it in
+        place: :meth:`snapshot` keeps the old objects)."""
+
+    def snapshot(self) -> dict:
+        """The state kept between iterations, for :meth:`restore` where a trial round of full
+        steps is not kept (the descent then goes on as if it had not been tried)."""
+        return dict(vars(self))
+
+    def restore(self, state: dict) -> None:
+        """Back to a :meth:`snapshot`."""
+        vars(self).clear()
+        vars(self).update(state)
 
     def check_options(self) -> None:
         """Raise :class:`OptionError` for the first option outside its range (`option_rules`;
