@@ -45,12 +45,12 @@ def certify_result(functional: Functional, result: SolveResult, solver: Directio
         stage = dataclasses.replace(options, max_iter=budget)
         shown = None if progress is None or not own else (
             lambda record: progress(dataclasses.replace(record, iteration=record.iteration + used)))
-        start = interpolate(target_functional, previous)
+        start, near = interpolate(target_functional, previous), previous.status == Status.SOLVED
         label, motion = starts.best(target_functional) if starts is not None else (MODEL, None)
         if label != MODEL and target_functional.objective(motion) < target_functional.objective(start):
-            start = motion  # the model's motion sampled here is nearer than the last mesh's solution
+            start, near = motion, False  # the model's motion sampled here is nearer than the last mesh's solution
         out = descend(target_functional, solver if own else companion_solver, search if own else companion_search,
-                      stage, shown, start)
+                      stage, shown, start, near_solution=near)
         if own:
             meshes.append((target_functional.grid.nodes, out.iterations))
             shrunk_to.append((out.options["eps"], out.options["delta"]))

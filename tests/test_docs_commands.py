@@ -63,10 +63,12 @@ NOT_RUN = {
     "qdframe bench scale --nodes 100001 --repeat 3": "a 9-minute measurement",
     # paper-7.2 alone at N = 100001, both paths, three processes each: 2 min 5 s (2026-11-25)
     "qdframe bench scale --models paper-7.2 --nodes 100001 --repeat 3": "a 2-minute measurement",
-    # paper-7.3 at N = 100001 with the default continuation: solved in 171 iterations, 470 s on
-    # the 2-core machine with a test run on the other core (2026-11-24); the same solve at
-    # N = 101 runs in tests/test_masses_and_signs.py
-    "qdframe solve paper-7.3 --nodes 100001": "an 8-minute solve",
+    # paper-7.3 at N = 100001 with the default continuation: 48 iterations, uncertified (replay
+    # estimate 2.1e-5), 421 s on the 2-core machine (2026-11-26), most of it the replay; the
+    # same solve at N = 101 runs in tests/test_masses_and_signs.py
+    "qdframe solve paper-7.3 --nodes 100001": "a 7-minute solve",
+    # the same without the estimate: 48 iterations, 63 s (2026-11-26); its grids up to 10001 run here
+    "qdframe solve paper-7.3 --nodes 100001 --no-estimate": "a 1-minute solve",
     # 7.1, 7.2 and 7.3 at N = 11, 101, 1001 with both directions: 73 s on the 2-core machine
     # (2026-11-25), most of it native's 500 iterations on 7.3; EXAMPLES runs it at N = 11, 101
     # with 100 iterations
