@@ -127,16 +127,17 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
     optimal = False  # the stop is a stationary point of the objective (no decrease predicted, ε at the floor)
 
-    def escape(cut: bool = False) -> bool:
+    def escape(cut: np.ndarray | None = None) -> bool:
         """A round of full steps (for a solver whose steps are Newton steps, within the budget)
-        where the descent would stop `stationary`, or with `cut` where the line search cut a
-        step; True when it found a much lower iterate, which the descent continues from."""
+        where the descent would stop `stationary`, or from the step `cut` where the line search
+        cut it; True when it found a much lower iterate, which the descent continues from."""
         nonlocal xi, terms
         budget = options.max_iter - (len(history) - 1)
-        if not solver.full_steps or budget < 1 or rounds[cut] < 1:
+        kind = cut is not None
+        if not solver.full_steps or budget < 1 or rounds[kind] < 1:
             return False
-        rounds[cut] -= 1
-        path = watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget))
+        rounds[kind] -= 1
+        path = watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget), cut)
         for point, step in path:
             xi, terms = point, functional.terms(point)
             _append(history, progress, _record(functional, len(history), xi, terms, 1.0, step, float("nan"), clock))
@@ -200,7 +201,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 status, message = Status.STATIONARY, "no step along the direction decreases the objective"
                 optimal = abs(direction.slope) <= STALL_SLOPE * abs(terms.objective)
                 break
-            if gamma < options.gamma_max and escape(cut=True):  # semismooth Newton's full steps may pass the kink
+            if gamma < options.gamma_max and escape(cut=options.gamma_max * step):  # semismooth Newton's full steps may pass the kink
                 continue
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
                 blocked = (f"a line-search trial point of iteration {iteration}", xi + bad[-1].gamma * step,
