@@ -201,7 +201,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 status, message = Status.STATIONARY, "no step along the direction decreases the objective"
                 optimal = abs(direction.slope) <= STALL_SLOPE * abs(terms.objective)
                 break
-            if gamma < options.gamma_max and escape(cut=options.gamma_max * step):  # semismooth Newton's full steps may pass the kink
+            if gamma < options.gamma_max and escape(cut=options.gamma_max * step):  # full steps may pass the kink
                 continue
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
                 blocked = (f"a line-search trial point of iteration {iteration}", xi + bad[-1].gamma * step,

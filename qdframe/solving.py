@@ -371,7 +371,8 @@ def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: Prog
                 run.shrunk_to + again.shrunk_to, LINE)
 
 
-def _lowest_start(starts: Starts, functional: Functional, earlier: list) -> tuple[str, np.ndarray, SolveResult | None]:
+def _lowest_start(starts: Starts, functional: Functional,
+                  earlier: list) -> tuple[str, np.ndarray, SolveResult | None]:
     """The start of a grid: the lowest there of the earlier stages' iterates (the last one
     first on a tie) and the model's own start (or its simulated motion); its label, and
     the stage's result it came from (None: the model's start)."""

@@ -54,18 +54,20 @@ def keep_start(functional: Functional, solver: DirectionSolver, step: np.ndarray
 
 
 def watchdog(functional: Functional, solver: DirectionSolver, xi: np.ndarray, objective: float,
-             options: DescentOptions, steps: int, first: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Full steps from ξ where the monotone descent stalled or cut a Newton step (the watchdog technique of
-    Chamberlain, Powell, Lemaréchal and Pedersen, 1982): semismooth Newton next to a kink
-    of the selections' natural map (a switch between two points of a fine grid) can need a
-    step that raises I before the next ones lower it far below, which a line search that
-    demands a decrease at every step never takes. From a fresh solver state (its damping
-    reset), up to `steps` steps γ = 1 (the first one `first` where given: the step a line
-    search cut, taken whole): the path to the first solved iterate (I ≤ tol and
-    every pointwise check passes), else to the lowest one if that is at most WATCHDOG_GAIN ×
-    `objective`, else to the one with I ≤ tol whose pointwise checks are nearest their
-    tolerances if CERTIFY_SHRINK× nearer than at ξ, else an empty list, the solver's state
-    as it was (the descent stops where it stalled, or goes on as if not tried)."""
+             options: DescentOptions, steps: int,
+             first: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Full steps from ξ where the monotone descent stalled or cut a Newton step (the
+    watchdog technique of Chamberlain, Powell, Lemaréchal and Pedersen, 1982): semismooth
+    Newton next to a kink of the selections' natural map (a switch between two points of a
+    fine grid) can need a step that raises I before the next ones lower it far below, which
+    a line search that demands a decrease at every step never takes. From a fresh solver
+    state (its damping reset), up to `steps` steps γ = 1 (the first one `first` where given:
+    the step a line search cut, taken whole): the path to the first solved iterate (I ≤ tol
+    and every pointwise check passes), else to the lowest one if that is at most
+    WATCHDOG_GAIN × `objective`, else to the one with I ≤ tol whose pointwise checks are
+    nearest their tolerances if CERTIFY_SHRINK× nearer than at ξ, else an empty list, the
+    solver's state as it was (the descent stops where it stalled, or goes on as if the
+    round had not been tried)."""
     kept = solver.snapshot()
     solver.start(functional)
     path: list[tuple[np.ndarray, np.ndarray]] = []
