@@ -137,7 +137,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
         if not solver.full_steps or budget < 1 or rounds[kind] < 1:
             return False
         rounds[kind] -= 1
-        path = watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget), cut)
+        first = None if cut is None else options.gamma_max * cut  # the cut step taken whole
+        path = watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget), first)
         for point, step in path:
             xi, terms = point, functional.terms(point)
             _append(history, progress, _record(functional, len(history), xi, terms, 1.0, step, float("nan"), clock))
@@ -201,7 +202,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
                 status, message = Status.STATIONARY, "no step along the direction decreases the objective"
                 optimal = abs(direction.slope) <= STALL_SLOPE * abs(terms.objective)
                 break
-            if gamma < options.gamma_max and escape(cut=options.gamma_max * step):  # full steps may pass the kink
+            if gamma < options.gamma_max and escape(cut=step):  # full steps may pass the kink
                 continue
             if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
                 blocked = (f"a line-search trial point of iteration {iteration}", xi + bad[-1].gamma * step,

@@ -311,7 +311,7 @@ def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
         label, start, source = _lowest_start(plan.starts, functional, earlier)
         from_stage = source is not None
         # a coarser grid's solution: its switches are a few nodes off here, which full steps pass
-        near = from_stage and getattr(source, "status", None) == Status.SOLVED and source.nodes < count
+        near = getattr(source, "status", None) == Status.SOLVED and source.nodes < count
         if not history:
             first_start = label
         used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
