@@ -19,6 +19,13 @@ onto the unit ball, in place of the clip.) scale_x = max(1, max |x|) and scale_z
 max |z|) over the trajectory: a problem
 whose states are of size 1e3 gets tolerances 1e3 times larger, one of size 1e-3 keeps
 the absolute tolerance. x(t_0) = x0 holds exactly (x0 is data, not an unknown).
+
+A periodic condition x_P(T) = x_P(0) met within its tolerance by a motion that does not
+turn back is met by the tolerance, not by the dynamics: over a short enough T every
+trajectory ends within the tolerance of its start (a free T can shrink towards 0, as
+:mod:`qdframe.unknowns` warns). :func:`closed_by_tolerance` names such a result (its gap
+more than half the distance x_P travels and above round-off); an equilibrium, x constant,
+has no gap and is not named.
 """
 
 from __future__ import annotations
@@ -32,6 +39,8 @@ from .functional import Functional
 # a descent with I ≤ tol but a pointwise check failing goes on while the worst check's ratio to
 # its tolerance shrinks by at least this factor in a window of iterations (qdframe.descent)
 CERTIFY_SHRINK = 4.0
+# a periodic gap below this (relative to max(1, max|x|)) is round-off: x is at rest
+ROUND_OFF = 1e-13
 
 
 @dataclass(frozen=True)
@@ -76,3 +85,20 @@ def failures(found: list[Check]) -> str:
 def binding(found: list[Check]) -> str:
     """The name of the check closest to (or furthest past) its tolerance."""
     return max(found, key=lambda check: check.ratio).name
+
+
+def closed_by_tolerance(functional: Functional, x: np.ndarray) -> str:
+    """Why the periodic conditions of `x` (N, ≥ n) hold only within their tolerance (the
+    module docstring), or empty: |x_P(T) − x_P(0)| > ½·Σ_k |x_P(t_{k+1}) − x_P(t_k)| (max
+    norms) and above round-off."""
+    periodic = np.asarray(functional.periodic, dtype=int)
+    if periodic.size == 0:
+        return ""
+    path = x[:, periodic]
+    gap = float(np.max(np.abs(path[-1] - path[0])))
+    travelled = float(np.sum(np.max(np.abs(np.diff(path, axis=0)), axis=1)))
+    if gap <= 0.5 * travelled or gap <= ROUND_OFF * max(1.0, float(np.max(np.abs(x)))):
+        return ""
+    return (f"the periodic condition holds only within its tolerance: x does not turn back (it ends "
+            f"{gap:.1e} from its start, {gap / travelled:.0%} of the {travelled:.1e} it travels), so over a "
+            f"horizon this short any motion would pass")

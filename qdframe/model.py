@@ -236,6 +236,10 @@ class InclusionModel(ABC):
     parameter_names: ClassVar[tuple[str, ...]] = ()
     default_parameters: ClassVar[tuple[float, ...]] = ()
     parameter_bounds: ClassVar[dict[str, tuple[float, float]]] = {}
+    # the true T and parameters where they are known (with exact_solution): a result's error
+    # vs the known solution then covers them as well as x
+    exact_T: ClassVar[float | None] = None
+    exact_parameters: ClassVar[dict[str, float]] = {}
 
     def __init__(
         self,

@@ -11,7 +11,8 @@ interval (lo, hi) of its bounds: the identity without bounds, lo + e^σ or hi �
 one, lo + (hi − lo)/(1 + e^−σ) with both; T's bounds are (0, ∞) unless the model says
 otherwise (``T_bounds``). T = 0 with x constant meets every periodic condition: from a poor
 guess a periodic orbit can shrink towards it, which the first guess's sweep along the
-motion (:meth:`Unknowns._sweep`) avoids and ``T_bounds = (lo, hi)``, lo > 0, forbids. For T > 0 the support function
+motion (:meth:`Unknowns._sweep`) avoids, ``T_bounds = (lo, hi)``, lo > 0, forbids and the
+verdict never calls solved (:func:`qdframe.certify.closed_by_tolerance`). For T > 0 the support function
 of T·F is T·c(F, ψ): every max-group, min-group and sign amplitude of the model is scaled
 by T, a switch s(y) is not (Sgn(s) does not change), the cost integrand is scaled by T
 (∫ c dt = ∫ T·c ds) and the surface is not. The σ's start and end free; the boundary,
@@ -381,6 +382,20 @@ class Unknowns(InclusionModel):
         return T, parameters
 
 
+def _solution_error(model: InclusionModel, t: np.ndarray, x: np.ndarray, T: float,
+                    parameters: Mapping[str, float]) -> float | None:
+    """max |x − x*| at the user's times, and |T − T*| and |p_i − p_i*| where the model knows
+    them (``exact_T``, ``exact_parameters``); None without a known solution."""
+    exact = model.exact_solution(t)
+    if exact is None:
+        return None
+    gaps = [float(np.max(np.abs(x - exact)))]
+    if model.free_T and model.exact_T is not None:
+        gaps.append(abs(T - model.exact_T))
+    gaps += [abs(parameters[name] - value) for name, value in model.exact_parameters.items()]
+    return max(gaps)
+
+
 def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
     """The result in the model's own time and states (module docstring)."""
     n = wrapper.n
@@ -393,11 +408,10 @@ def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
     set_bounds = [None if b is None else {**b, "lower": b["lower"] / factor, "upper": b["upper"] / factor}
                   for b in result.set_bounds if b is None or b["coordinate"] < n]
     t, x = np.asarray(result.t, float) * factor, result.x[:, :n]
-    exact = wrapper.inner.exact_solution(t)
     out = dataclasses.replace(
         result, T=T, t=t, x=x, z=result.z[:, :n] / factor, state_names=tuple(wrapper.inner.state_names),
         error_estimate=estimate, switch_times=np.asarray(result.switch_times, float) * factor, parameters=parameters,
-        set_bounds=set_bounds, solution_error=None if exact is None else float(np.max(np.abs(x - exact))),
+        set_bounds=set_bounds, solution_error=_solution_error(wrapper.inner, t, x, T, parameters),
         options={**result.options, "free_T": wrapper.scaled, "T_guess": wrapper.T_guess, "T_start": wrapper.T0,
                  "parameters_start": dict(zip(wrapper.inner.parameter_names, map(float, wrapper.inner.parameters)))},
     )

@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 
-from . import adaptive, switches
+from . import adaptive, certify, switches
 from .continuation import interpolate
 from .descent import DescentOptions, ProgressCallback, descend
 from .directions.base import DirectionSolver
@@ -75,7 +75,11 @@ def certify_result(functional: Functional, result: SolveResult, solver: Directio
     note = outcome.note
     if solved:
         bound = adaptive.tolerance(target, result, functional)
-        if found.value is None:
+        unclosed = certify.closed_by_tolerance(functional, np.asarray(result.x, float))
+        if unclosed:
+            result.status = Status.UNCERTIFIED
+            note = _join(note, f"{unclosed}: a longer T, or with T free a lower bound (T_bounds)")
+        elif found.value is None:
             result.status = Status.UNCERTIFIED
             reason = found.detail or "no error estimate"
             note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error is not "

@@ -311,3 +311,33 @@ def test_a_free_T_needs_a_condition_and_is_found_from_either_side():
 
     result = qdframe.solve(Thrown())
     assert result.solved and abs(result.T - (1 - np.sqrt(3) / 3)) <= 1e-6
+
+
+@pytest.mark.parametrize("free_T", [True, False])
+def test_a_periodic_condition_met_only_by_its_tolerance_is_not_solved(free_T):
+    """Guessed T = 1e-8, the relay's orbit through (1, 0) is 'periodic' within the tolerance
+    without turning back: not solved, and the message names the way out. With T free the
+    error vs the known solution counts T (true 4√2)."""
+    result = qdframe.solve(RelayPeriod(T=1e-8, free_T=free_T))
+    assert result.status != "solved"
+    assert "does not turn back" in result.message and "T_bounds" in result.message
+    if free_T:
+        assert result.solution_error == pytest.approx(4 * np.sqrt(2), abs=1e-6)
+
+
+def test_an_equilibrium_is_periodic_for_every_T():
+    """x ≡ 0 of x' ∈ −Sgn(x) closes every period exactly: a short T stays solved."""
+
+    class Rest(SetModel):
+        name = "rest"
+        state_names = "x y"
+        default_x0 = (0.0, 1.0)
+        periodic = (0, 1)
+        default_T = 1e-8
+
+        def sets(self, x, y):
+            return {x: -Sgn(x), y: -Sgn(x) * y}
+
+    result = qdframe.solve(Rest())
+    assert result.status == "solved", result.message
+    assert np.max(np.abs(result.x - [0.0, 1.0])) <= 1e-12

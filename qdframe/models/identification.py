@@ -21,8 +21,6 @@ user's times t; ``exact_T`` and ``exact_parameters`` are the true values.
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import numpy as np
 
 from ..sets import Interval, SetModel, Sgn
@@ -30,9 +28,6 @@ from ..sets import Interval, SetModel, Sgn
 
 class _Known(SetModel):
     """A model with the closed form `motion(t)` for its default data."""
-
-    exact_T: ClassVar[float | None] = None
-    exact_parameters: ClassVar[dict[str, float]] = {}
 
     def motion(self, t: np.ndarray) -> np.ndarray:
         raise NotImplementedError
