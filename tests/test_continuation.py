@@ -145,3 +145,15 @@ def test_a_round_of_full_steps_not_kept_leaves_the_solver_as_it_was():
     kept = solver.snapshot()
     assert watchdog(functional, solver, xi, 0.0, DescentOptions(), 2) == []  # nothing is below an objective of 0
     assert solver.snapshot().keys() == kept.keys() and all(solver.snapshot()[k] is v for k, v in kept.items())
+
+
+def test_a_newton_descent_creeping_at_a_local_minimum_stops_stationary():
+    """paper-7.3 on 1001 nodes from an 11- and a 31-node solution: Newton creeps at I ≈ 8e-8,
+    the objective falling ~1e-9 of itself per step. It stops `stationary` after a window
+    without a 4× fall (a watchdog round tried first) and the solve restarts from the straight
+    line, which creeps too; without the window it spent all 500 iterations (`max_iter`)."""
+    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False, continuation=[11, 31])
+    assert result.status in ("stationary", "uncertified"), result.message
+    assert result.iterations < 300
+    if result.status == "stationary":
+        assert "fell by less than 4× in 40 iterations" in result.message
