@@ -205,8 +205,14 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     M_k = local_k^{1/(p+1)}/h_k is the error density. K' intervals with equal shares of
     ∫M give a sum of local errors (∫M)^{p+1}/K'^p; K' is chosen so that this sum, scaled by
     estimate/Σ local (how much of the sum reaches the global error), is REFINE_MARGIN·
-    accuracy (absolute), and at least 1.25·K. The mesh points follow by inverting the
-    cumulative ∫M.
+    accuracy (absolute), and at least 1.25·K. Each interval is then cut into equal parts,
+    as many as the new points that inverting the cumulative ∫M would put in it (rounded
+    up): the new mesh keeps every old point. Where the solutions form a set, the solution
+    carried to the new mesh is already a discrete solution there (its re-solve takes an
+    iteration or none), and its choices (z, u) jump at the old points: inside a new interval
+    such a jump leaves the scheme's continued velocity outside the set there and the
+    estimate barely falls (coulomb-rest-to-rest: 41 → 161 points took it only from 8.7e-4
+    to 4.8e-4), on an old point it does not.
     """
     tau = grid.mesh_times
     h = np.diff(tau)
@@ -217,8 +223,11 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     reach = estimate / max(float(np.sum(local)), 1e-300)
     wanted = (mass[-1] ** (p + 1) * reach / (REFINE_MARGIN * accuracy)) ** (1.0 / p)
     count = int(min(max(np.ceil(wanted), np.ceil(1.25 * h.size)), 4 * h.size))
-    finer = np.interp(np.linspace(0.0, mass[-1], count + 1), mass, tau)
-    finer[0], finer[-1] = 0.0, grid.T
+    share = np.diff(np.interp(mass, np.linspace(0.0, mass[-1], count + 1), np.arange(count + 1.0)))
+    parts = np.maximum(1, np.ceil(share - 1e-9)).astype(int)  # the new points each interval would get
+    finer = np.concatenate([np.linspace(a, b, k, endpoint=False) for a, b, k in zip(tau[:-1], tau[1:], parts)]
+                           + [[grid.T]])
+    finer[0] = 0.0
     return finer
 
 

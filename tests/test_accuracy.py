@@ -60,6 +60,29 @@ def test_the_bisected_grid_keeps_every_mesh_point():
     assert np.allclose(finer.mesh_times, [0.0, 0.15, 0.3, 0.65, 1.0]) and finer.nodes == 9
 
 
+def test_a_refined_mesh_keeps_every_point_and_refines_where_the_error_is():
+    """adaptive.refine cuts each interval into equal parts: every old point stays (a
+    solution carried there keeps its jumps on points), and the interval with the large
+    local error gets the most parts."""
+    from qdframe.adaptive import refine
+
+    grid = Grid.from_mesh(np.array([0.0, 0.3, 0.5, 1.0]), "radau-iia")
+    local = np.array([1e-8, 1e-4, 1e-8])
+    finer = refine(grid, local, 1e-6, 1e-4)
+    assert np.all(np.isin(grid.mesh_times, finer)) and np.all(np.diff(finer) > 0)
+    parts = np.diff(np.searchsorted(finer, grid.mesh_times))
+    assert parts[1] == parts.max() > max(parts[0], parts[2]) and finer.size - 1 >= 1.25 * 3
+
+
+def test_a_free_input_refined_keeps_its_choices_jumps_on_points():
+    """coulomb-rest-to-rest (a bounded force, the solutions a set) by the default call:
+    with the old points kept, its refinement certifies on at most 400 points (801 when a
+    refined mesh moved them, the carried force's jumps then inside intervals)."""
+    result = qdframe.solve("coulomb-rest-to-rest")
+    assert result.status == "solved", result.message
+    assert result.nodes <= 400
+
+
 @pytest.mark.parametrize("mesh, field", [([0.0, 0.5, 0.4, 3.0], "mesh"), ([0.1, 3.0], "mesh"), ([0.0, 2.0], "mesh")])
 def test_a_bad_mesh_is_named(mesh, field):
     with pytest.raises(InputError, match=field):
