@@ -107,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--no-estimate", action="store_true",
                        help="skip the error estimate on a fixed grid (--nodes): the result is then at most "
                             "`uncertified`")
+    solve.add_argument("--no-simulate-start", action="store_true",
+                       help="start from the model's own guess, not its simulated Filippov motion (under its first "
+                            "controls where it has controls)")
     solve.add_argument("--json", metavar="FILE", help="write the result as JSON (- : to stdout, the summary to stderr)")
     solve.add_argument("--plot", metavar="FILE", help="write a figure (PNG, PDF or SVG)")
     solve.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -263,7 +266,7 @@ def _solve(args: argparse.Namespace) -> int:
         print(f"solving {model.name} {grid} with {args.direction}, budget {budget} iterations …",
               end="", file=sys.stderr, flush=True)
     try:
-        result = solve(model, direction=direction, estimate=not args.no_estimate,
+        result = solve(model, direction=direction, estimate=not args.no_estimate, simulate_start=not args.no_simulate_start,
                        progress=_progress_printer(budget) if show_progress else None,
                        **{name: getattr(args, name) for name in SOLVE_OPTIONS})
     finally:  # end the progress line, also before an error's line

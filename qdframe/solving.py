@@ -26,7 +26,7 @@ from .model import InclusionModel
 from .registry import load_model, make_direction, make_line_search
 from .result import IterationRecord, SolveResult
 from .schemes import Scheme
-from .start import LINE, MODEL, LineStarts, Starts
+from .start import LINE, MODEL, SIMULATED, LineStarts, Starts
 from .status import Status
 from .verdict import certify_result
 
@@ -136,13 +136,15 @@ def solve(
         result = unknowns.unwrap(wrapper, solve(wrapper, **arguments))
         result.wall_time_s = time.perf_counter() - clock
         return result
-    def planned(model: InclusionModel) -> _Plan:
+    def planned(model: InclusionModel, simulate: bool = simulate_start) -> _Plan:
         return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
                      eps_floor, continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes,
-                     certificate, simulate_start)
+                     certificate, simulate)
 
     plan = planned(model)
     run = _run_grids(plan, progress)
+    if run.first_start == SIMULATED and _stalled(plan, run):
+        plan, run = _from_the_model(plan, run, planned(model, simulate=False), progress)
     if run.first_start == MODEL and _stalled(plan, run):
         run = _from_the_line(model, plan, run, progress)
     rounds: list[optimum.Round] = []
@@ -260,11 +262,14 @@ def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, d
         continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
     grids = grid_schedule(final.nodes, solver.default_continuation if continuation is None else continuation,
                           solver.coarsest_nodes, solver.ladder_steps)
-    stages = []  # the functionals solved in turn: each grid, the first one also with the band if exact
+    # the functionals solved in turn: each grid, the first one also with the band if exact and
+    # there is no motion to start from (its selections are the motion's modes, the band's are not)
+    stages = []
+    band = starts.motion() is None
     for count in grids:
         grid = final if count == final.nodes else Grid(model.T, count, scheme)
         functional = Functional(model, grid, signs=signs, selection_scale=selection_scale)
-        if not stages and functional.p:
+        if not stages and functional.p and band:
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
     return _Plan(options, solver, search, grids, stages, starts, refining,
@@ -345,6 +350,33 @@ def _stalled(plan: _Plan, run: _Run) -> bool:
     a cost's rounds restart on their own, :mod:`qdframe.optimum`)."""
     return (plan.solver.full_steps and run.functional.cost is None and run.result.status == Status.STATIONARY
             and run.result.I > plan.options.tol)
+
+
+def _from_the_model(plan: _Plan, run: _Run, again: _Plan, progress: ProgressCallback | None) -> tuple[_Plan, _Run]:
+    """Where the simulated start stopped at a local minimum of I: the solve again as if the
+    model had no motion (`again`: the model's own start, its grids), with the budget left;
+    that plan and run where it ends solved or lower (its history after the first's), else
+    the first with a remark. A model with controls is simulated under its first controls,
+    whose motion can sit next to a local minimum on a coarse grid (paper-7.3 on 11 and 101
+    points)."""
+    used, elapsed = run.result.history[-1].iteration, run.result.history[-1].time_s
+    left = plan.options.max_iter - used
+    if left < 1:
+        return plan, run
+    shown = None if progress is None else (lambda record: progress(dataclasses.replace(
+        record, iteration=record.iteration + used, time_s=record.time_s + elapsed)))
+    again = dataclasses.replace(again, options=dataclasses.replace(again.options, max_iter=left))
+    second = _run_grids(again, shown)
+    if not (second.result.status in (Status.SOLVED, Status.UNCERTIFIED) or second.result.objective < run.result.objective):
+        run.result.remarks.append(f"from the model's own start too, it ended {second.result.status}, no lower")
+        return plan, run
+    second.result.history = run.result.history + [dataclasses.replace(
+        record, iteration=record.iteration + used, time_s=record.time_s + elapsed) for record in second.result.history]
+    per_grid = list(second.per_grid)
+    for count, spent in zip(plan.grids, run.per_grid):  # the simulated start's iterations, on the grids both ran
+        if count in again.grids:
+            per_grid[again.grids.index(count)] += spent
+    return again, _Run(second.functional, second.result, per_grid, run.shrunk_to + second.shrunk_to, MODEL)
 
 
 def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: ProgressCallback | None) -> _Run:

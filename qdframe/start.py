@@ -4,9 +4,10 @@ at a local minimum of I).
 
 A friction model that a user writes has, by default, a constant start x ≡ x0, z ≡ 0; from
 there semismooth Newton has to find every stick, slip and crossing itself, and on a
-pendulum with pivot friction or a long stick-slip horizon it does not. Where the model
-leaves no choice (its sets are points apart from their sign terms, no controls), its true
-Filippov motion can be integrated (:mod:`qdframe.filippov`) and sampled on the grid:
+pendulum with pivot friction or a long stick-slip horizon it does not. Where the model's
+sets are points apart from their sign terms, its true Filippov motion can be integrated
+(:mod:`qdframe.filippov`) and sampled on the grid; a model with controls u is moved by its
+first controls (``initial_controls``, u ≡ 0 by default), which the solve then changes:
 
 - x(0) wholly given: the motion from x0 (an initial-value problem: that motion is the
   solution; with end conditions too, it is the start the conditions are then met from);
@@ -160,14 +161,17 @@ def _turning(x: np.ndarray) -> float:
 
 
 def simulate(functional: Functional) -> FilippovTrajectory | None:
-    """The model's Filippov motion over [0, T] from x(0) (free values by shooting); None
-    where the model leaves a choice (controls, sets that are not points)."""
+    """The model's Filippov motion over [0, T] from x(0) (free values by shooting), under its
+    first controls where it has controls; None where a set is not a point (the velocity is
+    a choice)."""
     model = functional.model
     exact = functional if functional.signs == "exact" else Functional(model, functional.grid, signs="exact")
-    if exact.m:
-        return None
+    controls = None
+    if exact.m:  # the motion under the model's own first controls
+        def controls(time: float) -> np.ndarray:
+            return np.asarray(model.initial_controls(np.array([time])), dtype=float)[0]
     try:
-        system = model_system(exact)
+        system = model_system(exact, controls)
     except FilippovError:  # a set that is not a point: the motion needs a choice
         return None
     given = exact.start_given
@@ -211,7 +215,8 @@ def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
     x = motion(t)
     exact = functional if functional.signs == "exact" else Functional(functional.model, functional.grid, signs="exact")
     n, p = exact.n, exact.p
-    row = exact.pack(x, np.zeros_like(x), None, np.zeros((t.size, p)) if p else None)
+    u = np.asarray(exact.model.initial_controls(t), dtype=float) if exact.m else None
+    row = exact.pack(x, np.zeros_like(x), u, np.zeros((t.size, p)) if p else None)
     if p:
         row[:, 2 * n + exact.m:] = 0.0  # λ = 0: the sets without their sign terms
     g = nearest(exact, row)[0]  # the sets are points: z is irrelevant

@@ -149,8 +149,13 @@ def test_a_free_start_value_is_found_by_shooting():
 
 
 def test_models_that_leave_a_choice_have_no_simulated_start():
-    assert Starts(qdframe.load_model("paper-7.3")).motion() is None
+    """A set that is not a point leaves the velocity a choice: no motion. Controls do not:
+    the model is moved by its first controls (paper-7.3: u ≡ 0, sliding on x4 = 0 from its
+    x(0), which misses only x3(1) = 0)."""
     assert Starts(qdframe.load_model("velocity-range")).motion() is None
+    motion = Starts(qdframe.load_model("paper-7.3")).motion()
+    end = motion(np.array([1.0]))[0]
+    assert abs(end[3]) <= 1e-8 and abs(end[2]) > 1e-2
     assert Starts(qdframe.load_model("block-stop-stick"), simulate=False).motion() is None
 
 
@@ -179,8 +184,9 @@ def test_the_relay_oscillator_is_solved_by_default():
 
 
 def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line():
-    """paper-7.3 on 11 implicit-Euler points: from the paper's first approximation (x ≡ 0)
-    gauss-newton stops at a local minimum of I; the grids solved again from the straight line
+    """paper-7.3 on 11 implicit-Euler points: from its motion under u ≡ 0 and then from the
+    paper's first approximation (x ≡ 0) gauss-newton stops at a local minimum of I; the
+    grids solved again from the straight line
     between the given ends (x(0) held, x3 drawn to x3(T) = 0) solve the discrete problem, and
     the result says so. Its history runs on from the first run's."""
     result = qdframe.solve("paper-7.3", nodes=11, estimate=False)
@@ -189,3 +195,13 @@ def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line():
     iterations = [record.iteration for record in result.history]
     assert iterations == sorted(iterations) and iterations[-1] == result.iterations
     assert "straight line" not in qdframe.solve("paper-7.3", nodes=21, estimate=False).options["start"]  # no stall
+
+
+def test_a_model_with_controls_starts_from_its_motion_under_its_first_controls():
+    """paper-7.3 on 1001 points: its Filippov motion under u ≡ 0 slides on x4 = 0 and misses
+    only x3(1) = 0, and semismooth Newton moves u from there: the discrete problem is solved
+    on the requested grid alone, no ladder and no band start, in a few iterations (30 on the
+    ladder 101, 301, 1001 from the paper's x ≡ 0)."""
+    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False)
+    assert result.converged and result.options["start"] == "simulated", result.message
+    assert result.options["grids"] == [1001] and result.iterations <= 5

@@ -40,7 +40,7 @@ def test_a_coarse_grid_spends_at_most_its_share():
     """7.3 with the paper's method does not stop on 11 nodes (before, it spent the whole
     budget there): the coarse grid, band start included, takes at most max_iter // (2·2)
     and the requested grid the rest."""
-    result = qdframe.solve("paper-7.3", nodes=101, direction="native", max_iter=30)
+    result = qdframe.solve("paper-7.3", nodes=101, direction="native", max_iter=30, simulate_start=False)
     coarse, fine = result.options["iterations_per_grid"]
     assert result.options["grids"] == [11, 101] and 1 <= coarse <= 30 // 4 and coarse + fine == 30
     assert [coarse, fine] == steps_per_grid(result)
@@ -123,8 +123,9 @@ def test_a_finer_grid_from_a_solved_coarser_one_passes_its_kinks_with_full_steps
     """paper-7.3 up the ladder 101, 301, 1001: on each finer grid the coarser solution's
     stick/slip boundaries are a few nodes off, and a line search lets semismooth Newton move
     them about one node per step. Where it cuts a step, a round of full steps moves them all
-    at once (steps.EAGER_ROUNDS), where the line search alone moves them one node per step."""
-    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False)
+    at once (steps.EAGER_ROUNDS), where the line search alone moves them one node per step.
+    (From the model's own start: the default, its motion under u ≡ 0, takes no ladder.)"""
+    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False, simulate_start=False)
     assert result.converged, result.message
     first, *finer = result.options["iterations_per_grid"]
     assert finer[-1] <= 8 and sum(finer) <= 12
@@ -152,7 +153,7 @@ def test_a_newton_descent_creeping_at_a_local_minimum_stops_stationary():
     the objective falling ~1e-9 of itself per step. It stops `stationary` after a window
     without a 4× fall (a watchdog round tried first) and the solve restarts from the straight
     line, which creeps too; without the window it spent all 500 iterations (`max_iter`)."""
-    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False, continuation=[11, 31])
+    result = qdframe.solve("paper-7.3", nodes=1001, estimate=False, continuation=[11, 31], simulate_start=False)
     assert result.status in ("stationary", "uncertified"), result.message
     assert result.iterations < 300
     if result.status == "stationary":

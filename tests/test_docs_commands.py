@@ -63,12 +63,16 @@ NOT_RUN = {
     "qdframe bench scale --nodes 100001 --repeat 3": "a 9-minute measurement",
     # paper-7.2 alone at N = 100001, both paths, three processes each: 2 min 5 s (2026-11-25)
     "qdframe bench scale --models paper-7.2 --nodes 100001 --repeat 3": "a 2-minute measurement",
-    # paper-7.3 at N = 100001 with the default continuation: 48 iterations, uncertified (replay
-    # estimate 2.1e-5), 421 s on the 2-core machine (2026-11-26), most of it the replay; the
-    # same solve at N = 101 runs in tests/test_masses_and_signs.py
+    # paper-7.3 at N = 100001 from its motion: 3 iterations, uncertified (replay estimate
+    # 2.0e-5), 401 s on the 2-core machine (2026-11-27), most of it the replay; the same solve
+    # at N = 101 runs in tests/test_masses_and_signs.py
     "qdframe solve paper-7.3 --nodes 100001": "a 7-minute solve",
-    # the same without the estimate: 48 iterations, 63 s (2026-11-26); its grids up to 10001 run here
-    "qdframe solve paper-7.3 --nodes 100001 --no-estimate": "a 1-minute solve",
+    # the same without the estimate: 3 iterations from 7.3's motion under u ≡ 0, 17.5 s
+    # (2026-11-27); at 1001 and 10001 they run here
+    "qdframe solve paper-7.3 --nodes 100001 --no-estimate": "a 20-second solve",
+    # from the model's own start, up the ladder: 48 iterations, 60 s (2026-11-26); its grids up
+    # to 10001 run here
+    "qdframe solve paper-7.3 --nodes 100001 --no-estimate --no-simulate-start": "a 1-minute solve",
     # 7.1, 7.2 and 7.3 at N = 11, 101, 1001 with both directions: 73 s on the 2-core machine
     # (2026-11-25), most of it native's 500 iterations on 7.3; EXAMPLES runs it at N = 11, 101
     # with 100 iterations
@@ -427,7 +431,7 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve paper-7.1 --option mu=1e-8 --option mu_max=1e4": _solved,
     "qdframe solve block-breakaway --accuracy 1e-6": _breakaway_to_1e_6,
     "qdframe solve paper-7.2 --xT=3,0": _unreachable_end,
-    "qdframe solve paper-7.3 --nodes 101 --direction native": _papers_method_on_73,
+    "qdframe solve paper-7.3 --nodes 101 --direction native --no-simulate-start": _papers_method_on_73,
     "qdframe simulate paper-7.3 --from -0.2 --to 0 --x0=-1,1,-1,-1,1,1": _simulated_reaching,
     "qdframe bench friction": _friction_suite,
     "qdframe bench time-optimal --accuracy none --formulations global --stages 4 --elements 4 "
