@@ -68,8 +68,13 @@ class Starts:
     def best(self, functional: Functional) -> tuple[str, np.ndarray]:
         """The simulated start where there is one with a finite objective (it is the model's
         true motion: on a coarse grid its discretization residual may exceed a hand-made
-        start's, but it has the solution's switches), else the model's."""
+        start's, but it has the solution's switches), else the model's. With controls the
+        motion is only that of the first controls, which may run far from every solution (an
+        unstable x' = 5x + u under u ≡ 0 grows by e^20 over T = 4): the lower objective wins."""
         candidates = self.candidates(functional)
+        if functional.m:
+            values = [_objective(functional, xi) for _, xi in candidates]
+            return candidates[int(np.argmin(values))]
         for label, xi in reversed(candidates[1:]):
             try:
                 if np.isfinite(functional.objective(xi)):
@@ -120,6 +125,16 @@ class LineStarts(Starts):
     def best(self, functional: Functional) -> tuple[str, np.ndarray]:
         line = straight_line(functional)
         return (LINE, line) if line is not None else super().best(functional)
+
+
+def _objective(functional: Functional, xi: np.ndarray) -> float:
+    """The objective at ξ, +inf where the model is non-finite there (the model's start then
+    names it)."""
+    try:
+        value = functional.objective(xi)
+    except ModelOutputError:
+        return np.inf
+    return float(value) if np.isfinite(value) else np.inf
 
 
 def straight_line(functional: Functional) -> np.ndarray | None:

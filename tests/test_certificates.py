@@ -14,6 +14,7 @@ from qdframe.model_system import model_system
 from qdframe.functional import Functional
 from qdframe.grid import Grid
 from qdframe.models.exact_friction import BlockStopStick, block_stop_stick_motion
+from qdframe.sets import SetModel
 from qdframe.start import Starts
 
 SIMULATED = ("block-stop-stick", "block-breakaway", "slide-on-line", "slide-after-reaching", "two-surface-sliding",
@@ -205,3 +206,24 @@ def test_a_model_with_controls_starts_from_its_motion_under_its_first_controls()
     result = qdframe.solve("paper-7.3", nodes=1001, estimate=False)
     assert result.converged and result.options["start"] == "simulated", result.message
     assert result.options["grids"] == [1001] and result.iterations <= 5
+
+
+def test_a_control_models_motion_is_its_start_only_where_it_is_lower():
+    """x' = 5x + u from x(0) = 1 to x(4) = 0: under u ≡ 0 the motion grows by e^20, far from
+    every solution, and the discrete solution found from there stayed near it (max|x| 5.9e7).
+    With controls the lower objective of the two starts wins: the model's own x ≡ 1."""
+
+    class Unstable(SetModel):
+        name = "unstable-control"
+        state_names = "x"
+        control_names = "u"
+        default_x0 = (1.0,)
+        default_xT = {"x": 0.0}
+        default_T = 4.0
+
+        def sets(self, x, u):
+            return {x: 5 * x + u}
+
+    result = qdframe.solve(Unstable(), nodes=101, estimate=False)
+    assert result.converged and result.options["start"] == "model", result.message
+    assert np.max(np.abs(result.x)) <= 10.0
