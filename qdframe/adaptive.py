@@ -211,8 +211,7 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     carried to the new mesh is already a discrete solution there (its re-solve takes an
     iteration or none), and its choices (z, u) jump at the old points: inside a new interval
     such a jump leaves the scheme's continued velocity outside the set there and the
-    estimate barely falls (coulomb-rest-to-rest: 41 → 161 points took it only from 8.7e-4
-    to 4.8e-4), on an old point it does not.
+    estimate barely falls (coulomb-rest-to-rest, docs/method.md), on an old point it does not.
     """
     tau = grid.mesh_times
     h = np.diff(tau)

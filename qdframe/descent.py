@@ -38,8 +38,8 @@ CERTIFY_WINDOW = 40
 # with I > tol, a Newton-type descent (no cost) whose objective falls by less than CERTIFY_SHRINK
 # in CERTIFY_WINDOW iterations sits at a local minimum of I that it only creeps along: it stops
 # `stationary` there (after a watchdog round), so that the solve restarts from another start
-# rather than spend its budget (paper-7.3 on 1001 nodes from a 31-node solution: 400 iterations
-# at I = 8.2e-8, the objective falling 1e-9 of itself per step)
+# rather than spend its budget (paper-7.3 on 1001 nodes from a 31-node solution,
+# tests/test_continuation.py)
 CERTIFY_WINDOW_FIRST_ORDER = 400  # the paper's min-norm directions converge linearly: a longer window
 EPS_SHRINK = 10.0  # ε and δ are divided by this where the iterate is ε-stationary but not solved
 EPS_FLOOR = 1e-12  # the smallest ε of a certified solve (solve's eps_floor=None where the mesh is refined)
