@@ -49,6 +49,7 @@ SWEEP_OCTAVES = 6  # a free T's first guess is sought in [T/2, T·2^k], k ≤ th
 SWEEP_POINTS = 4001
 SWEEP_TOL = 1e-9
 SWEEP_NEAR = 1e-3  # misses within this (relative to |x|) of the least count as near-best
+SHRUNK = 1e-3  # an unsolved period found below this fraction of its guess is named as drawn to T = 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -421,4 +422,7 @@ def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
             out.status = Status.UNCERTIFIED
             out.remarks = [*out.remarks, f"the scaled problem is certified, but with T free the error at the "
                                          f"model's times, estimate {estimate:.1e}, exceeds the target {bound:.1e}"]
+    if wrapper.scaled and wrapper.periodic and out.status != Status.SOLVED and T < SHRUNK * wrapper.T_guess:
+        out.remarks = [*out.remarks, f"T shrank from the guess {wrapper.T_guess:g} to {T:.2g}, towards the trivial "
+                                     f"period T = 0 of a constant x: bound T from below (T_bounds) or guess it nearer"]
     return out

@@ -341,3 +341,11 @@ def test_an_equilibrium_is_periodic_for_every_T():
     result = qdframe.solve(Rest())
     assert result.status == "solved", result.message
     assert np.max(np.abs(result.x - [0.0, 1.0])) <= 1e-12
+
+
+def test_a_period_drawn_towards_zero_says_so():
+    """Guessed at T = 1e-3, the relay's period shrinks towards the trivial T = 0 (ending
+    `stationary` at T ≈ 1.6e-7): the message names the shrinkage and T_bounds."""
+    result = qdframe.solve(RelayPeriod(T=1e-3))
+    assert result.status != "solved" and result.T < 1e-5
+    assert "T shrank from the guess 0.001" in result.message and "T_bounds" in result.message
