@@ -224,8 +224,9 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float) -> n
     count = int(min(max(np.ceil(wanted), np.ceil(1.25 * h.size)), 4 * h.size))
     share = np.diff(np.interp(mass, np.linspace(0.0, mass[-1], count + 1), np.arange(count + 1.0)))
     parts = np.maximum(1, np.ceil(share - 1e-9)).astype(int)  # the new points each interval would get
-    finer = np.concatenate([np.linspace(a, b, k, endpoint=False) for a, b, k in zip(tau[:-1], tau[1:], parts)]
-                           + [[grid.T]])
+    interval = np.repeat(np.arange(h.size), parts)  # each new point's old interval, then its index in it
+    within = np.arange(interval.size) - np.repeat(np.cumsum(parts) - parts, parts)
+    finer = np.append(tau[interval] + within * (h / parts)[interval], grid.T)
     finer[0] = 0.0
     return finer
 

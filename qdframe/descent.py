@@ -35,11 +35,6 @@ ProgressCallback = Callable[[IterationRecord], None]
 # flat for stretches of iterations before it falls, and a short window would stop a descent
 # that is still on its way to certified.
 CERTIFY_WINDOW = 40
-# with I > tol, a Newton-type descent (no cost) whose objective falls by less than CERTIFY_SHRINK
-# in CERTIFY_WINDOW iterations sits at a local minimum of I that it only creeps along: it stops
-# `stationary` there (after a watchdog round), so that the solve restarts from another start
-# rather than spend its budget (paper-7.3 on 1001 nodes from a 31-node solution,
-# tests/test_continuation.py)
 CERTIFY_WINDOW_FIRST_ORDER = 400  # the paper's min-norm directions converge linearly: a longer window
 EPS_SHRINK = 10.0  # ε and δ are divided by this where the iterate is ε-stationary but not solved
 EPS_FLOOR = 1e-12  # the smallest ε of a certified solve (solve's eps_floor=None where the mesh is refined)
@@ -251,7 +246,11 @@ def _blocked_next_to(xi: np.ndarray, step: np.ndarray, bad: list["_Trial"], iter
 def _creeping(functional: Functional, solver: DirectionSolver, options: DescentOptions,
               history: list[IterationRecord], terms) -> bool:
     """I > tol, and the objective fell by less than CERTIFY_SHRINK in the last CERTIFY_WINDOW
-    iterations (a Newton-type solver without a cost: the paper's descent converges linearly)."""
+    iterations (a Newton-type solver without a cost: the paper's descent converges linearly).
+    Such a descent sits at a local minimum of I that it only creeps along: it stops
+    `stationary` there (after a watchdog round), so that the solve restarts from another
+    start rather than spend its budget (paper-7.3 on 1001 nodes from a 31-node solution,
+    tests/test_continuation.py)."""
     return (solver.full_steps and functional.cost is None and terms.I > options.tol
             and len(history) > CERTIFY_WINDOW
             and terms.objective * CERTIFY_SHRINK > history[-1 - CERTIFY_WINDOW].objective)

@@ -354,11 +354,28 @@ def _stalled(plan: _Plan, run: _Run) -> bool:
 
 def _from_the_model(plan: _Plan, run: _Run, again: _Plan, progress: ProgressCallback | None) -> tuple[_Plan, _Run]:
     """Where the simulated start stopped at a local minimum of I: the solve again as if the
-    model had no motion (`again`: the model's own start, its grids), with the budget left;
-    that plan and run where it ends solved or lower (its history after the first's), else
-    the first with a remark. A model with controls is simulated under its first controls,
-    whose motion can sit next to a local minimum on a coarse grid (paper-7.3 on 11 and 101
-    points)."""
+    model had no motion (`again`: the model's own start, its grids; :func:`_again`). A model
+    with controls is simulated under its first controls, whose motion can sit next to a
+    local minimum on a coarse grid (paper-7.3 on 11 and 101 points)."""
+    return _again(plan, run, again, MODEL, "the model's own start", progress)
+
+
+def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: ProgressCallback | None) -> _Run:
+    """Where the grids from the model's start (x ≡ x0, at rest) stopped at a local minimum of
+    I: the grids again from the straight line between the given ends (:func:`_again`).
+    paper-7.3 at N = 11: the model's start stops at a local minimum, the line is solved."""
+    if not len(model.end_indices):
+        return run
+    return _again(plan, run, dataclasses.replace(plan, starts=LineStarts(model)), LINE,
+                  "the straight line between the given ends", progress)[1]
+
+
+def _again(plan: _Plan, run: _Run, again: _Plan, label: str, whence: str,
+           progress: ProgressCallback | None) -> tuple[_Plan, _Run]:
+    """`again` (another start, perhaps other grids) with the budget `run` left: its plan and
+    run (started from `label`) where it ends solved or lower than `run`, its history after
+    `run`'s and the iterations on the grids both ran added; else `plan` and `run`, with a
+    remark that the start `whence` ended no lower."""
     used, elapsed = run.result.history[-1].iteration, run.result.history[-1].time_s
     left = plan.options.max_iter - used
     if left < 1:
@@ -368,39 +385,15 @@ def _from_the_model(plan: _Plan, run: _Run, again: _Plan, progress: ProgressCall
     again = dataclasses.replace(again, options=dataclasses.replace(again.options, max_iter=left))
     second = _run_grids(again, shown)
     if not (second.result.status in (Status.SOLVED, Status.UNCERTIFIED) or second.result.objective < run.result.objective):
-        run.result.remarks.append(f"from the model's own start too, it ended {second.result.status}, no lower")
+        run.result.remarks.append(f"from {whence} too, it ended {second.result.status}, no lower")
         return plan, run
     second.result.history = run.result.history + [dataclasses.replace(
         record, iteration=record.iteration + used, time_s=record.time_s + elapsed) for record in second.result.history]
     per_grid = list(second.per_grid)
-    for count, spent in zip(plan.grids, run.per_grid):  # the simulated start's iterations, on the grids both ran
+    for count, spent in zip(plan.grids, run.per_grid):  # the first run's iterations, on the grids both ran
         if count in again.grids:
             per_grid[again.grids.index(count)] += spent
-    return again, _Run(second.functional, second.result, per_grid, run.shrunk_to + second.shrunk_to, MODEL)
-
-
-def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: ProgressCallback | None) -> _Run:
-    """Where the grids from the model's start (x ≡ x0, at rest) stopped at a local minimum of
-    I: the grids again from the straight line between the given ends, with the budget left;
-    that run where it ends solved or lower (its history after the first's), else the first
-    with a remark. paper-7.3 at N = 11: the model's start stops at I = 1.4e-5 after 37
-    iterations, the line is solved in 4."""
-    used, elapsed = run.result.history[-1].iteration, run.result.history[-1].time_s
-    left = plan.options.max_iter - used
-    if not len(model.end_indices) or left < 1:
-        return run
-    shown = None if progress is None else (lambda record: progress(dataclasses.replace(
-        record, iteration=record.iteration + used, time_s=record.time_s + elapsed)))
-    again = _run_grids(dataclasses.replace(plan, starts=LineStarts(model),
-                                           options=dataclasses.replace(plan.options, max_iter=left)), shown)
-    if not (again.result.status in (Status.SOLVED, Status.UNCERTIFIED) or again.result.objective < run.result.objective):
-        run.result.remarks.append(f"from the straight line between the given ends too, it ended "
-                                  f"{again.result.status}, no lower")
-        return run
-    again.result.history = run.result.history + [dataclasses.replace(
-        record, iteration=record.iteration + used, time_s=record.time_s + elapsed) for record in again.result.history]
-    return _Run(again.functional, again.result, [a + b for a, b in zip(run.per_grid, again.per_grid)],
-                run.shrunk_to + again.shrunk_to, LINE)
+    return again, _Run(second.functional, second.result, per_grid, run.shrunk_to + second.shrunk_to, label)
 
 
 def _lowest_start(starts: Starts, functional: Functional,
