@@ -382,8 +382,9 @@ def _again(plan: _Plan, run: _Run, again: _Plan, label: str, whence: str,
         return plan, run
     shown = None if progress is None else (lambda record: progress(dataclasses.replace(
         record, iteration=record.iteration + used, time_s=record.time_s + elapsed)))
-    again = dataclasses.replace(again, options=dataclasses.replace(again.options, max_iter=left))
-    second = _run_grids(again, shown)
+    # the budget left for these grids; the plan returned keeps the whole (the refinement after
+    # it and the message count the iterations over the whole solve)
+    second = _run_grids(dataclasses.replace(again, options=dataclasses.replace(again.options, max_iter=left)), shown)
     if not (second.result.status in (Status.SOLVED, Status.UNCERTIFIED) or second.result.objective < run.result.objective):
         run.result.remarks.append(f"from {whence} too, it ended {second.result.status}, no lower")
         return plan, run

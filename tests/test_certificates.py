@@ -192,6 +192,7 @@ def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line():
     the result says so. Its history runs on from the first run's."""
     result = qdframe.solve("paper-7.3", nodes=11, estimate=False)
     assert result.options["start"] == "straight line" and result.I <= 1e-20
+    assert result.options["max_iter"] == 500  # the whole solve's budget, not what the last start had left
     assert all(check["value"] <= check["tol"] for check in result.checks.values())
     iterations = [record.iteration for record in result.history]
     assert iterations == sorted(iterations) and iterations[-1] == result.iterations
