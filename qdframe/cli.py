@@ -93,6 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
                                         "(default: the model's, implicit-euler unless it says otherwise)")
     solve.add_argument("--signs", choices=("exact", "band"), default="exact",
                        help="sign terms a·Sgn(s): exact selections λ ∈ Sgn(s) (default) or the C¹ band")
+    solve.add_argument("--inputs", choices=("held", "free"), default="held",
+                       help="a fixed set's choice (a bounded input) and the controls: held on each mesh interval's "
+                            "stages (default) or free at every point")
     solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
     solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
                        help="`solved` needs every pointwise residual ≤ this (default 1e-8)")
@@ -230,7 +233,7 @@ def _list(args: argparse.Namespace) -> int:
 
 
 SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "eps_floor", "gamma_max", "continuation", "scheme", "signs",
-                 "selection_scale", "residual_tol", "accuracy", "max_nodes", "certificate")
+                 "selection_scale", "inputs", "residual_tol", "accuracy", "max_nodes", "certificate")
 """Options of `qdframe solve` passed to :func:`qdframe.solve` under their own names."""
 
 

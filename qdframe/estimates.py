@@ -325,4 +325,4 @@ def dense(grid: Grid, values: np.ndarray, times: np.ndarray) -> np.ndarray:
 def like(functional: Functional, grid: Grid, signs: str | None = None) -> Functional:
     """A functional of the same model and sign treatment (or `signs`) on `grid`."""
     return Functional(functional.model, grid, signs=functional.signs if signs is None else signs,
-                      selection_scale=functional.selection_scale)
+                      selection_scale=functional.selection_scale, inputs=functional.inputs)

@@ -56,6 +56,7 @@ def solve(
     scheme: str | Scheme | None = None,
     signs: str = "exact",
     selection_scale: float = 1.0,
+    inputs: str = "held",
     mesh: Sequence[float] | np.ndarray | None = None,
     estimate: bool = True,
     accuracy: float | None = None,
@@ -94,6 +95,10 @@ def solve(
     `signs` "exact" gives every sign term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied
     to s by the natural map λ = clip(λ + c·s, −1, 1), c = `selection_scale`
     (the result's `selections`); "band" uses each term's C¹ band instead.
+    `inputs` "held" (the default) keeps the choice in each fixed set (a bounded input,
+    x' ∈ f(x) + U) and the controls u the same at every stage of a mesh interval of a
+    collocation scheme with several stages (radau-iia), as direct collocation holds a
+    control per stage; "free" lets every point choose (:mod:`qdframe.functional.held`).
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
@@ -138,8 +143,8 @@ def solve(
         return result
     def planned(model: InclusionModel, simulate: bool = simulate_start) -> _Plan:
         return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
-                     eps_floor, continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes,
-                     certificate, simulate)
+                     eps_floor, continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy,
+                     max_nodes, certificate, simulate)
 
     plan = planned(model)
     run = _run_grids(plan, progress)
@@ -219,11 +224,12 @@ class _Plan:
     requested: str | Scheme  # the scheme of the result (the first grids may bootstrap with implicit Euler)
     signs: str
     selection_scale: float
+    inputs: str
 
 
 def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
-          eps_floor, continuation, scheme, signs, selection_scale, mesh, estimate, accuracy, max_nodes, certificate,
-          simulate_start) -> _Plan:
+          eps_floor, continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy, max_nodes,
+          certificate, simulate_start) -> _Plan:
     """The arguments of :func:`solve` checked and turned into the grids it runs."""
     if accuracy is not None and not (isinstance(accuracy, (int, float)) and np.isfinite(accuracy) and accuracy > 0):
         raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
@@ -268,12 +274,12 @@ def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, d
     band = starts.motion() is None
     for count in grids:
         grid = final if count == final.nodes else Grid(model.T, count, scheme)
-        functional = Functional(model, grid, signs=signs, selection_scale=selection_scale)
+        functional = Functional(model, grid, signs=signs, selection_scale=selection_scale, inputs=inputs)
         if not stages and functional.p and band:
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
     return _Plan(options, solver, search, grids, stages, starts, refining,
-                 DEFAULT_ACCURACY if accuracy is None else float(accuracy), requested, signs, selection_scale)
+                 DEFAULT_ACCURACY if accuracy is None else float(accuracy), requested, signs, selection_scale, inputs)
 
 
 @dataclass
@@ -441,7 +447,8 @@ def _summarized(plan: _Plan, run: _Run, functional: Functional, result: SolveRes
     result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,
                       "start": run.first_start, "grids": grids, "iterations_per_grid": per_grid,
                       "scheme": functional.grid.scheme.name, "signs": plan.signs,
-                      "selection_scale": plan.selection_scale, "uniform": functional.grid.uniform}
+                      "selection_scale": plan.selection_scale, "inputs": plan.inputs,
+                      "uniform": functional.grid.uniform}
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
     if result.status == Status.MAX_ITER:  # the whole budget, over all grids
         result.reason = f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")

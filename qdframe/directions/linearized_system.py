@@ -167,6 +167,27 @@ def _constraints(skeleton: Skeleton) -> sp.csr_matrix:
     return rows.matrix()
 
 
+def _held_rows(f: "Functional", xi: np.ndarray, y_cols: np.ndarray, z_cols: np.ndarray,
+               root_w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """η's rows: per pair (p, q) of one interval's stages and held choice j, √w_p·(c_pj − c_qj)
+    on the columns of y = (x, u, λ) and z at p and at q."""
+    held = f.held
+    choice, grads = held.choices(xi, gradients=True)
+    coords = held.coords(f.arguments(xi))
+    first, last = held.pairs[:, 0], held.pairs[:, 1]
+    count, H = first.size, choice.shape[1]
+    unit = np.zeros((H, f.n))  # ∂c/∂z: the identity on the held blocks' z
+    unit[np.arange(len(coords)), coords] = 1.0
+    scale = root_w[first][:, None, None]
+    cols = np.concatenate([np.repeat(y_cols[first][:, None, :], H, axis=1), np.repeat(z_cols[first][:, None, :], H, axis=1),
+                           np.repeat(y_cols[last][:, None, :], H, axis=1), np.repeat(z_cols[last][:, None, :], H, axis=1)],
+                          axis=2)
+    vals = np.concatenate([scale * grads[first], scale * np.broadcast_to(unit, (count, H, f.n)),
+                           -scale * grads[last], -scale * np.broadcast_to(unit, (count, H, f.n))], axis=2)
+    residual = root_w[first][:, None] * (choice[first] - choice[last])
+    return residual.ravel(), cols.reshape(count * H, -1), vals.reshape(count * H, -1)
+
+
 class LinearizedSystem:
     """The linearized problem at ξ in the extended unknowns [x | z | u | Z] per node.
 
@@ -313,6 +334,8 @@ class LinearizedSystem:
                 cols = np.concatenate([cols, extra_cols], axis=2)
                 vals = np.concatenate([vals, extra_vals], axis=2)
             add((root_w[:, None] * r).ravel(), cols.reshape(nodes * f.p, -1), vals.reshape(nodes * f.p, -1))
+        if f.held is not None:  # η: √w_{k,i}·(c_{k,i} − c_{k,s}), the held choices (functional.held)
+            add(*_held_rows(f, xi, y_cols, z_cols, root_w))
         return np.concatenate(residuals), rows.matrix(), np.concatenate(still_residuals or [np.zeros(0)])
 
     def still(self) -> sp.csr_matrix:

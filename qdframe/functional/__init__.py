@@ -46,14 +46,16 @@ from ..model import Cost, InclusionModel, SetBlock, Surface
 from ..quasidifferential import Quasidifferential
 from ..registry import plugin_code
 from .assembly import Quasidifferentials
+from .held import HeldChoices
 from .jacobians import DistanceSides, Jacobians
 from .layout import Layout, SelectionGroup
 from .pieces import Pieces
 from .terms import Residuals, Terms, Values
 
-__all__ = ["SIGN_MODES", "DistanceSides", "Functional", "Residuals", "SelectionGroup", "Terms"]
+__all__ = ["INPUT_MODES", "SIGN_MODES", "DistanceSides", "Functional", "Residuals", "SelectionGroup", "Terms"]
 
 SIGN_MODES = ("exact", "band")
+INPUT_MODES = ("free", "held")
 
 
 class Functional(Layout):
@@ -78,12 +80,16 @@ class Functional(Layout):
         psi_samples: int = 128,
         signs: str = "exact",
         selection_scale: float = 1.0,
+        inputs: str = "free",
     ) -> None:
         """`signs`: "exact" (a selection λ ∈ Sgn(s) per sign term and node, tied by σ) or
         "band" (the C¹ band of :class:`~qdframe.model.SignTerm`, no selections);
-        `selection_scale` is c in σ's natural map."""
+        `selection_scale` is c in σ's natural map; `inputs`: "free" (each point's own choice
+        in the sets and controls) or "held" (one per mesh interval: η, :mod:`.held`)."""
         if signs not in SIGN_MODES:
             raise InputError("signs", " or ".join(f'"{mode}"' for mode in SIGN_MODES), signs)
+        if inputs not in INPUT_MODES:
+            raise InputError("inputs", " or ".join(f'"{mode}"' for mode in INPUT_MODES), inputs)
         if not (isinstance(selection_scale, (int, float)) and np.isfinite(selection_scale) and selection_scale > 0):
             raise InputError("selection_scale", "a positive finite number", selection_scale)
         super().__init__(model, signs, grid.nodes)
@@ -95,11 +101,17 @@ class Functional(Layout):
         with plugin_code(model, "cost()"):
             cost = model.cost()
         self.pieces = Pieces(model, grid, self.n, self.args, self.width, psi_samples)
+        self.inputs = inputs
+        held = HeldChoices(self, grid, self.pieces) if inputs == "held" and signs == "exact" else None
+        if held is not None:
+            probe = np.concatenate([np.nan_to_num(model.x0), np.zeros(self.m)])[None, :]
+            held = held if held.pairs.size and (held.coords(probe) or self.m) else None
+        self.held = held
         self.values = Values(
             layout=self, grid=grid, pieces=self.pieces, surface=surface, cost=cost,
             penalty=float(cost.weight) if cost is not None else 1.0,
             end=np.asarray(model.end_indices, dtype=int), periodic=np.asarray(model.periodic, dtype=int),
-            end_values=model.end_values, selection_scale=float(selection_scale))
+            end_values=model.end_values, selection_scale=float(selection_scale), held=self.held)
         self.assembly = Quasidifferentials(layout=self, grid=grid, pieces=self.pieces, values=self.values)
         self.jacobians = Jacobians(layout=self, pieces=self.pieces, cost=cost)
 

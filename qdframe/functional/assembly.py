@@ -83,6 +83,8 @@ class Quasidifferentials:
             if left.size:
                 gradient[left - 1, layout.args :] -= np.where(held, r[left], 0.0)
             smooth += layout.embed(gradient)
+        if self.values.held is not None:  # η: the held choices
+            smooth += self.values.held.gradient(xi) / w[:, None]
         return smooth
 
     def _add_block(self, coords: tuple[int, ...], side, delta: float, smooth: np.ndarray,

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..model import Cost, Surface
+from .held import HeldChoices
 from .layout import Layout
 from .pieces import Pieces, _reduce_last
 
@@ -39,6 +40,7 @@ class Terms:
     cost: float
     I: float
     objective: float
+    eta: float = 0.0  # the held choices' term (qdframe.functional.held; 0 with inputs free)
 
 
 @dataclass(frozen=True)
@@ -67,16 +69,17 @@ class Values:
     periodic: np.ndarray  # P: x_i(T) = x_i(0)
     end_values: np.ndarray  # xT_j, j ∈ J
     selection_scale: float  # c of σ's natural map
+    held: "HeldChoices | None" = None  # η, with inputs="held" (:mod:`.held`)
 
     def terms(self, xi: np.ndarray) -> Terms:
         """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
         x, z = self.layout.split(xi)
-        phi, omega, sigma, cost = self._set_terms(xi)
+        phi, omega, sigma, cost, eta = self._set_terms(xi)
         chi = 0.5 * float(np.sum(self.end_residual(x, z) ** 2))
         upsilon = 0.5 * self.integral(np.sum(self.consistency(x, z) ** 2, axis=1))
-        total = phi + chi + omega + upsilon + sigma
+        total = phi + chi + omega + upsilon + sigma + eta
         objective = cost + self.penalty * total if self.cost is not None else total
-        return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective)
+        return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective, eta)
 
     def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
         """γ ↦ the objective at ξ + γG, what a line search minimizes (paper (180)).
@@ -96,21 +99,22 @@ class Values:
         )
 
         def objective(gamma: float) -> float:
-            phi, omega, sigma, cost = self._set_terms(xi + gamma * direction)
-            total = phi + quadratic(gamma) + omega + sigma
+            phi, omega, sigma, cost, eta = self._set_terms(xi + gamma * direction)
+            total = phi + quadratic(gamma) + omega + sigma + eta
             return cost + self.penalty * total if self.cost is not None else total
 
         return objective
 
-    def _set_terms(self, xi: np.ndarray) -> tuple[float, float, float, float]:
-        """φ, ω, σ and the cost at ξ, the terms not quadratic in ξ, from the pieces' values."""
+    def _set_terms(self, xi: np.ndarray) -> tuple[float, float, float, float, float]:
+        """φ, ω, σ, the cost and η at ξ, the terms not quadratic in ξ, from the pieces' values."""
         x, z = self.layout.split(xi)
         y, lam = self.layout.arguments(xi), self.layout.selections(xi)
         phi = 0.5 * self.integral(sum(h**2 for h in self._distances(y, z, lam)))
         omega = 0.5 * self.integral(np.sum(self.surface_at(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
         sigma = 0.5 * self.integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.layout.p else 0.0
         cost = self.integral(self._cost_integrand(y)) if self.cost is not None else 0.0
-        return phi, omega, sigma, cost
+        eta = self.held.eta(xi) if self.held is not None else 0.0
+        return phi, omega, sigma, cost, eta
 
     def _distances(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[np.ndarray]:
         """h_b (N,) of every block from the pieces' values (no gradients): an interval's in
