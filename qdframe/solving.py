@@ -68,9 +68,8 @@ def solve(
 ) -> SolveResult:
     """Find a trajectory of `model` by quasidifferential descent.
 
-    `direction` "gauss-newton" (the default) or "native" (the paper's method), or any
-    registered name or DirectionSolver; `line_search` likewise, by default the
-    direction's own (`default_line_search`: armijo for gauss-newton, golden for native).
+    `direction` "gauss-newton" (the default) or "native" (the paper's method), or any registered name or
+    DirectionSolver; `line_search` likewise, by default the direction's own (armijo, golden).
 
     `continuation` lists coarser grids to solve on first (e.g. (11, 101) before
     nodes=1001): each grid's result, interpolated, starts the next. "auto" is the ladder
@@ -84,21 +83,17 @@ def solve(
     included) and leaves one iteration to each later grid, so the requested grid gets the
     rest: at least half when max_iter ≥ 2G and ≥ 1 when max_iter ≥ 1 (a coarse grid left
     no iteration is skipped). A stage before the last only provides a start and stops on
-    10·ε. The history and `iterations` cover all grids, each record naming its grid
-    (`nodes`); each grid after the first adds a record of its start (same iteration
-    number); `options["iterations_per_grid"]` is aligned with `options["grids"]`, and a
-    status other than `solved` after several grids gives it in the message.
+    10·ε. The history and `iterations` cover all grids, each record naming its grid (`nodes`); each grid
+    after the first adds a record of its start (same iteration number); `options["iterations_per_grid"]`
+    is aligned with `options["grids"]`, and a status other than `solved` after several grids says so.
 
-    `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's;
-    "implicit-euler"; "radau-iia", where `nodes` counts mesh and stage points and is odd);
-    None is the model's `default_scheme` (implicit Euler unless the model says otherwise).
-    `signs` "exact" gives every sign term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied
-    to s by the natural map λ = clip(λ + c·s, −1, 1), c = `selection_scale`
-    (the result's `selections`); "band" uses each term's C¹ band instead.
-    `inputs` "held" (the default) keeps the choice in each fixed set (a bounded input,
-    x' ∈ f(x) + U) and the controls u the same at every stage of a mesh interval of a
-    collocation scheme with several stages (radau-iia), as direct collocation holds a
-    control per stage; "free" lets every point choose (:mod:`qdframe.functional.held`).
+    `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's; "implicit-euler";
+    "radau-iia", where `nodes` counts mesh and stage points and is odd); None is the model's
+    `default_scheme` (implicit Euler unless the model says otherwise). `signs` "exact" gives every sign
+    term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied to s by the natural map λ = clip(λ + c·s, −1, 1),
+    c = `selection_scale` (the result's `selections`); "band" uses each term's C¹ band instead. `inputs`
+    "held" keeps a fixed set's choice and the controls u one per mesh interval of radau-iia
+    (:mod:`qdframe.functional.held`); "free" lets every point choose.
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if
     None), `stationary` when every node's deviation is ≤ ε or no step decreases the
@@ -142,9 +137,9 @@ def solve(
         result.wall_time_s = time.perf_counter() - clock
         return result
     def planned(model: InclusionModel, simulate: bool = simulate_start) -> _Plan:
-        return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
-                     eps_floor, continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy,
-                     max_nodes, certificate, simulate)
+        return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol, eps_floor,
+                     continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy, max_nodes,
+                     certificate, simulate)
 
     plan = planned(model)
     run = _run_grids(plan, progress)

@@ -1,0 +1,120 @@
+"""Held inputs (qdframe.functional.held): a fixed set's choice and the controls are one per
+mesh interval of a multi-stage collocation scheme. η's value, gradient and gauss-newton
+rows against finite differences; which blocks are held; a held solve's choices; and the
+default call on a bounded-input problem judged by an independent replay."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe.bench.references import SchemeRule, judge
+from qdframe.directions.linearized_system import LinearizedSystem, _held_rows
+from qdframe.directions.sparse_rows import RowBlocks
+from qdframe.errors import InputError
+from qdframe.functional import Functional
+from qdframe.functional.held import held_pairs
+from qdframe.grid import Grid, make_scheme
+
+
+def _held(name: str, nodes: int = 9, seed: int = 0) -> tuple[Functional, np.ndarray]:
+    """A held functional on radau-iia and a random iterate (selections inside [−1, 1])."""
+    model = qdframe.load_model(name)
+    functional = Functional(model, Grid(model.T, nodes, "radau-iia"), inputs="held")
+    rng = np.random.default_rng(seed)
+    xi = functional.initial_point() + 0.3 * rng.standard_normal((nodes, functional.dim)) * functional.free
+    if functional.p:
+        xi[:, -functional.p:] = np.clip(xi[:, -functional.p:], -0.9, 0.9)
+    return functional, xi
+
+
+@pytest.mark.parametrize("scheme, nodes, pairs", [
+    ("radau-iia", 7, [(1, 2), (3, 4), (5, 6)]),
+    ("radau-iia5", 7, [(1, 3), (2, 3), (4, 6), (5, 6)]),
+    ("implicit-euler", 5, []),
+    ("trapezoid", 5, []),
+])
+def test_pairs_are_each_intervals_stages_against_its_last(scheme, nodes, pairs):
+    """Radau IIA's stages inside each interval are tied to its last; a one-stage rule has
+    nothing to hold, and the trapezoid rule's velocity reads the interval's first point."""
+    assert [tuple(p) for p in held_pairs(Grid(1.0, nodes, scheme))] == pairs
+
+
+def test_held_blocks_are_the_fixed_sets_and_the_controls():
+    """coulomb-rest-to-rest: v' ∈ [−U, U] − F·Sgn(v) is held, p' = v is not; the
+    double pendulum's sets [0.5·x, 1.5·x] move with the state: nothing held; paper-7.3
+    holds its control u."""
+    functional, xi = _held("coulomb-rest-to-rest")
+    assert functional.held.coords(functional.arguments(xi)) == [1]
+    model = qdframe.load_model("double-pendulum")
+    assert Functional(model, Grid(model.T, 9, "radau-iia"), inputs="held").held is None
+    functional, xi = _held("paper-7.3")
+    assert functional.held is not None and functional.m == 1
+    assert functional.held.choices(xi)[0].shape == (xi.shape[0], len(functional.held.coords(xi)) + 1)
+    model = qdframe.load_model("coulomb-rest-to-rest")
+    assert Functional(model, Grid(model.T, 9, "radau-iia")).held is None  # inputs free: the default of Functional
+
+
+@pytest.mark.parametrize("name", ["coulomb-rest-to-rest", "sliding-mode-terminal", "paper-7.3"])
+def test_eta_gradient_and_rows_match_finite_differences(name):
+    """∂η/∂ξ (the paper's direction) and the gauss-newton rows' J·d against central
+    differences, and η = ½‖rows‖² (the rows are √w-weighted)."""
+    functional, xi = _held(name)
+    held, step = functional.held, 1e-6
+    fd = np.zeros_like(xi)
+    for i, j in np.argwhere(functional.free):
+        up, down = xi.copy(), xi.copy()
+        up[i, j] += step
+        down[i, j] -= step
+        fd[i, j] = (held.eta(up) - held.eta(down)) / (2 * step)
+    gradient = held.gradient(xi) * functional.free
+    assert np.max(np.abs(gradient - fd)) <= 1e-7 * max(1.0, np.max(np.abs(fd)))
+    system = LinearizedSystem(functional, xi, 1e-3)
+    root_w = np.sqrt(functional.weights)
+    residual, cols, vals = _held_rows(functional, xi, system.y_cols(), system.z_cols(), root_w)
+    assert 0.5 * np.sum(residual**2) == pytest.approx(held.eta(xi), rel=1e-12)
+    rows = RowBlocks(system.size)
+    rows.add(cols, vals)
+    d = np.random.default_rng(1).standard_normal(xi.shape) * functional.free
+    extended = np.zeros((xi.shape[0], system.width))
+    extended[:, : functional.dim] = d
+    moved = _held_rows(functional, xi + step * d, system.y_cols(), system.z_cols(), root_w)[0]
+    assert np.max(np.abs((moved - residual) / step - rows.matrix() @ extended.ravel())) <= 1e-6
+
+
+def _choices(result, inputs: str) -> np.ndarray:
+    model = qdframe.load_model("coulomb-rest-to-rest")
+    functional = Functional(model, Grid(model.T, result.nodes, "radau-iia"), inputs="held")
+    return functional.held.residual(functional.pack(result.x, result.z, result.u, result.selections))
+
+
+def test_a_held_solve_chooses_once_per_interval():
+    """On a fixed grid, the held solve's force is the same at both stages of every interval;
+    the free solve's is not."""
+    held = qdframe.solve("coulomb-rest-to-rest", nodes=21, scheme="radau-iia", estimate=False)
+    free = qdframe.solve("coulomb-rest-to-rest", nodes=21, scheme="radau-iia", estimate=False, inputs="free")
+    assert held.status == free.status == "uncertified"  # the discrete problem solved, no estimate asked for
+    assert held.options["inputs"] == "held" and free.options["inputs"] == "free"
+    assert np.max(np.abs(_choices(held, "held"))) <= 1e-6
+    assert np.max(np.abs(_choices(free, "free"))) >= 1e-3
+
+
+def test_default_call_on_a_bounded_input_meets_its_target_on_few_points():
+    """The default call certifies coulomb-rest-to-rest on few points; the true motion its input
+    drives (the benchmark's events replay, DOP853 at 1e-12 with event location, the
+    scheme's own continuation) is within 1e-6 of x and meets the end conditions."""
+    result = qdframe.solve("coulomb-rest-to-rest")
+    assert result.status == "solved" and result.nodes <= 101
+    model = qdframe.load_model("coulomb-rest-to-rest")
+    t = np.asarray(result.t)
+    rule = SchemeRule(make_scheme("radau-iia"), t, np.arange(0, t.size, 2))
+    verdict = judge(model, t, np.asarray(result.x), np.asarray(result.z), None, result.switch_times,
+                    velocity=rule, selections=np.asarray(result.selections))
+    assert verdict.error <= 1e-6
+    assert verdict.error <= result.error_estimate * 1.5
+
+
+def test_inputs_must_be_held_or_free():
+    with pytest.raises(InputError, match="inputs"):
+        qdframe.solve("coulomb-rest-to-rest", nodes=21, inputs="constant")
