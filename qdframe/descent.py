@@ -7,12 +7,13 @@ or the descent can go no further. The public call, with its grids and certificat
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from . import certify
 from .certify import CERTIFY_SHRINK
@@ -104,8 +105,15 @@ def descend(
     pieces too small to pay for the threads, and stalls on when another process holds a
     core (`qdframe bench scale`, docs/benchmarks.md).
     """
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _blas().limit(limits=1, user_api="blas"):
         return _descend(functional, solver, search, options, progress, start, near_solution)
+
+
+@functools.cache
+def _blas() -> ThreadpoolController:
+    """The process's thread pools, found once, at the first descent (finding them searches the loaded
+    libraries, a millisecond or two: a solve runs a descent per grid and per settling round)."""
+    return ThreadpoolController()
 
 
 def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,

@@ -362,6 +362,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     starts, pieces, switches, modes = [], [], [], [(t, mode)]
     events = stalls = 0
     left: dict[int, float] = {}  # when each vector sign last began to leave rest
+    whole = False  # the last piece was one step: the next one tries its whole span first (an input's kinks)
     while t < T:
         stop = _after(stops, t)
         inside = _inside(t, stop)
@@ -369,8 +370,11 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         scale = max(1.0, float(np.max(np.abs(x), initial=0.0)))
         method, until = _method(fields(inside(t), x), current, balls, scale, aimed, t, left)
         watched = _events(fields, current, inside, balls, aimed, scale, min(REACH_ATOLS * atol, STOP_TOL / 2) * scale)
-        run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, min(until, stop)),
-                        x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched])
+        span = min(until, stop) - t
+        run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, t + span),
+                        x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched],
+                        first_step=span if whole and method == "DOP853" else None)
+        whole = run.t.size == 2
         if run.status == -1:
             raise FilippovError(f"{system.name}: DOP853 failed at t = {run.t[-1]:.17g} in mode {mode}: {run.message}")
         end = float(run.t[-1])
