@@ -101,6 +101,8 @@ class FilippovTrajectory:
     T: float
     events: int = 0  # terminal events met (mode changes, re-choices, breaks)
     seconds: float = field(default=0.0, compare=False)
+    steps: int = 0  # accepted steps over all pieces
+    one_step: bool = False  # every piece one accepted DOP853 step (a polynomial motion between an input's kinks)
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         """x(t), (K, n), for the times t (K,): each time from the piece containing it."""
@@ -363,6 +365,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     events = stalls = 0
     left: dict[int, float] = {}  # when each vector sign last began to leave rest
     whole = False  # the last piece was one step: the next one tries its whole span first (an input's kinks)
+    steps, one_step = 0, True
     while t < T:
         stop = _after(stops, t)
         inside = _inside(t, stop)
@@ -375,6 +378,8 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
                         x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched],
                         first_step=span if whole and method == "DOP853" else None)
         whole = run.t.size == 2
+        steps += run.t.size - 1
+        one_step = one_step and (whole and method == "DOP853" or run.t.size == 1)
         if run.status == -1:
             raise FilippovError(f"{system.name}: DOP853 failed at t = {run.t[-1]:.17g} in mode {mode}: {run.message}")
         end = float(run.t[-1])
@@ -432,7 +437,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     if not pieces:
         raise FilippovError(f"{system.name}: nothing integrated over [{t0}, {T}]")
     return FilippovTrajectory(np.array(starts), pieces, tuple(switches), modes, T, events,
-                              time.perf_counter() - clock)
+                              time.perf_counter() - clock, steps, one_step)
 
 
 def _to_rest(fields: Fields, x: np.ndarray, t: float, stop: float, mode: tuple[int, ...],
