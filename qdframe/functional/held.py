@@ -9,13 +9,13 @@ scheme's degree under a constant choice (a mass pushed by a constant force again
 Coulomb friction), the collocation polynomial is that motion itself, and the trajectory
 is a true motion of the inclusion, not an approximation of one.
 
-The choice is held where the block's set proper is a fixed set (the bounded inputs of
-x' ∈ f(x) + U, written as U's constant pieces plus sign terms) and for the controls; a
-set that moves with the state (x' ∈ [0.5·x, 1.5·x]) keeps each point's choice, since a
+The choice is held where the block's set proper is a fixed set U moved by the state,
+f(y) + U (a bounded input: v' ∈ −k·p + [−U, U] − F·Sgn(v)), and for the controls; a set
+whose shape changes with the state (x' ∈ [0.5·x, 1.5·x]) keeps each point's choice, since a
 choice held across a bound that moves would leave the set between the points. The choice
-of a set block b at point p is its velocity less its sign terms' Filippov points, c_{p,b} = z_{p,b} − Σ sense·a(y_p)·λ_p (the point of the set proper that the
-velocity picks; :func:`qdframe.estimates.replay` continues the same choice between the
-points), and of the controls, u_p. With the stages (k, 1) … (k, s) of interval k,
+of a set block b at point p is its place in U: its velocity less f_b(y_p) (each max-group's
+first piece) and its sign terms' Filippov points, c_{p,b} = z_{p,b} − f_b(y_p) −
+Σ sense·a(y_p)·λ_p, and of the controls, u_p. With the stages (k, 1) … (k, s) of interval k,
 
     η = ½ Σ_k Σ_{i<s} w_{k,i} ‖c_{k,i} − c_{k,s}‖²,
 
@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import ModelOutputError
 from ..grid import Grid
 from .layout import Layout
 from .pieces import Pieces
@@ -62,36 +63,62 @@ class HeldChoices:
         self.pairs = held_pairs(self.grid)
 
     def blocks(self, y: np.ndarray) -> list[int]:
-        """The blocks whose set proper (without its sign terms) is a fixed set that is not a
-        point: max-groups of constant pieces, more than one in some group, no min-groups
-        (found once, at y's first point and at that point moved by one in every argument)."""
+        """The blocks whose set proper (without its sign terms) is a fixed set U moved by the
+        state, f(y) + U, and not a point: no min-groups, more than one piece in some max-group,
+        and in each max-group pieces that differ by constants (found once, at y's first point
+        and at that point moved by one in every argument)."""
         if self._blocks is None:
             probes = np.concatenate([y[:1], y[:1] + 1.0])
-            self._blocks = [b for b, block in enumerate(self.layout.blocks) if self._fixed(block, probes)]
+            self._blocks = [b for b, block in enumerate(self.layout.blocks) if self._translated(block, probes)]
         return self._blocks
 
-    def _fixed(self, block, probes: np.ndarray) -> bool:
-        """Whether `block`'s set proper is a fixed set of more than one point."""
+    def _translated(self, block, probes: np.ndarray) -> bool:
+        """Whether `block`'s set proper is f(y) + U, U fixed and not a point."""
         if block.min_groups or not block.max_groups:
             return False
-        groups = [self.pieces.max_group(block, group, probes) for group in block.max_groups]
-        constant = all(np.array_equal(f[0], f[1]) and not np.any(jac) for f, jac in groups)
-        return constant and any(f.shape[1] > 1 for f, _ in groups)
+        try:
+            groups = [self.pieces.max_group(block, group, probes) for group in block.max_groups]
+        except ModelOutputError:  # not finite at a probe: kept free
+            return False
+        fixed = all(np.allclose(f[0] - f[0, :1], f[1] - f[1, :1], rtol=0.0, atol=1e-12 * (1.0 + np.abs(f).max()))
+                    and np.array_equal(jac - jac[:, :1], np.zeros_like(jac)) for f, jac in groups)
+        return fixed and any(f.shape[1] > 1 for f, _ in groups)
+
+    def _anchors(self, y: np.ndarray, gradients: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """f(y) of the held blocks (each max-group's first piece, summed), (N, H'), and with
+        `gradients` its Jacobian in y = (x, u), (N, H', n + m)."""
+        coords = self.coords(y)
+        f = np.zeros((y.shape[0], len(coords)))
+        jac = np.zeros((y.shape[0], len(coords), self.layout.args)) if gradients else None
+        start = 0
+        for b in self.blocks(y):
+            block = self.layout.blocks[b]
+            columns = slice(start, start + block.size)
+            for group in block.max_groups:
+                values, grads = self.pieces.max_group(block, group, y)
+                f[:, columns] += values[:, 0]
+                if gradients:
+                    jac[:, columns] += grads[:, 0]
+            start += block.size
+        return f, jac
 
     def coords(self, y: np.ndarray) -> list[int]:
         """The z coordinates of the held blocks."""
         return [c for b in self.blocks(y) for c in self.layout.blocks[b].coords]
 
     def choices(self, xi: np.ndarray, gradients: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """c (N, H): the held blocks' choices, then the controls; with `gradients`, ∂c/∂(x, u, λ)
-        (N, H, n + m + p) (∂c/∂z is the identity on the held blocks' z, and 0 on the controls)."""
+        """c (N, H): the held blocks' choices in their fixed sets U (z_b less f_b(y) and the sign
+        terms' points), then the controls; with `gradients`, ∂c/∂(x, u, λ) (N, H, n + m + p)
+        (∂c/∂z is the identity on the held blocks' z, and 0 on the controls)."""
         layout = self.layout
         y, lam = layout.arguments(xi), layout.selections(xi)
         z = layout.split(xi)[1]
         coords = self.coords(y)
-        choice = np.concatenate([z[:, coords], layout.controls(xi)], axis=1)
+        anchor, anchor_grads = self._anchors(y, gradients)
+        choice = np.concatenate([z[:, coords] - anchor, layout.controls(xi)], axis=1)
         grads = np.zeros(choice.shape + (layout.width,)) if gradients else None
         if gradients:
+            grads[:, : len(coords), : layout.args] = -anchor_grads
             grads[:, len(coords):, layout.n: layout.args] = np.eye(layout.m)[None]  # ∂u/∂u
         place = {c: i for i, c in enumerate(coords)}
         for k, (b, term) in zip(layout.sign_columns, layout.sign_terms):

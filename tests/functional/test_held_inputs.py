@@ -16,11 +16,25 @@ from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.functional.held import held_pairs
 from qdframe.grid import Grid, make_scheme
+from qdframe.sets import Interval, SetModel, Sgn
 
 
-def _held(name: str, nodes: int = 9, seed: int = 0) -> tuple[Functional, np.ndarray]:
+class SpringPush(SetModel):
+    """p' = v, v' ∈ −p + [−2, 2] − 0.5·Sgn(v): a fixed interval moved by a spring, with friction."""
+
+    name = "spring-push"
+    state_names = "p v"
+    default_T = 3.0
+    default_x0 = (0.0, 0.0)
+    default_xT = {"p": 1.0, "v": 0.0}
+
+    def sets(self, p, v):
+        return {p: v, v: -p + Interval(-2, 2) - 0.5 * Sgn(v)}
+
+
+def _held(name, nodes: int = 9, seed: int = 0) -> tuple[Functional, np.ndarray]:
     """A held functional on radau-iia and a random iterate (selections inside [−1, 1])."""
-    model = qdframe.load_model(name)
+    model = qdframe.load_model(name) if isinstance(name, str) else name
     functional = Functional(model, Grid(model.T, nodes, "radau-iia"), inputs="held")
     rng = np.random.default_rng(seed)
     xi = functional.initial_point() + 0.3 * rng.standard_normal((nodes, functional.dim)) * functional.free
@@ -43,8 +57,8 @@ def test_pairs_are_each_intervals_stages_against_its_last(scheme, nodes, pairs):
 
 def test_held_blocks_are_the_fixed_sets_and_the_controls():
     """coulomb-rest-to-rest: v' ∈ [−U, U] − F·Sgn(v) is held, p' = v is not; the
-    double pendulum's sets [0.5·x, 1.5·x] move with the state: nothing held; paper-7.3
-    holds its control u."""
+    double pendulum's sets [0.5·x, 1.5·x] change shape with the state: nothing held;
+    paper-7.3 holds its control u; −p + [−2, 2] is a fixed interval moved: held."""
     functional, xi = _held("coulomb-rest-to-rest")
     assert functional.held.coords(functional.arguments(xi)) == [1]
     model = qdframe.load_model("double-pendulum")
@@ -54,9 +68,12 @@ def test_held_blocks_are_the_fixed_sets_and_the_controls():
     assert functional.held.choices(xi)[0].shape == (xi.shape[0], len(functional.held.coords(xi)) + 1)
     model = qdframe.load_model("coulomb-rest-to-rest")
     assert Functional(model, Grid(model.T, 9, "radau-iia")).held is None  # inputs free: the default of Functional
+    functional, xi = _held(SpringPush())  # −p + [−2, 2]: the interval moved by the state, held
+    assert functional.held.coords(functional.arguments(xi)) == [1]
 
 
-@pytest.mark.parametrize("name", ["coulomb-rest-to-rest", "sliding-mode-terminal", "paper-7.3"])
+@pytest.mark.parametrize("name", ["coulomb-rest-to-rest", "sliding-mode-terminal", "paper-7.3", SpringPush()],
+                         ids=["coulomb-rest-to-rest", "sliding-mode-terminal", "paper-7.3", "spring-push"])
 def test_eta_gradient_and_rows_match_finite_differences(name):
     """∂η/∂ξ (the paper's direction) and the gauss-newton rows' J·d against central
     differences, and η = ½‖rows‖² (the rows are √w-weighted)."""
@@ -118,3 +135,22 @@ def test_default_call_on_a_bounded_input_meets_its_target_on_few_points():
 def test_inputs_must_be_held_or_free():
     with pytest.raises(InputError, match="inputs"):
         qdframe.solve("coulomb-rest-to-rest", nodes=21, inputs="constant")
+
+
+def test_a_moved_interval_is_held_in_its_own_place():
+    """With the interval moved by the spring, what is held is the place in [−2, 2]: the
+    velocity less −p and the friction's point differs across an interval's stages by
+    the spring's change alone."""
+    model = SpringPush()
+    result = qdframe.solve(model, nodes=21, scheme="radau-iia", estimate=False)
+    assert result.status == "uncertified"  # the discrete problem solved, no estimate asked for
+    functional = Functional(model, Grid(model.T, 21, "radau-iia"), inputs="held")
+    xi = functional.pack(result.x, result.z, result.u, result.selections)
+    assert np.max(np.abs(functional.held.residual(xi))) <= 1e-6
+    pairs = functional.held.pairs
+    (_, term), = functional.sign_terms  # 0.5·Sgn(−v) as compiled: the point sense·a·λ
+    velocity_less_friction = result.z[:, 1] - term.sense * term.amplitude * result.selections[:, 0]
+    spring = -result.x[:, 0]
+    moved = velocity_less_friction[pairs[:, 0]] - velocity_less_friction[pairs[:, 1]]
+    assert np.allclose(moved, spring[pairs[:, 0]] - spring[pairs[:, 1]], atol=1e-6)
+    assert np.max(np.abs(moved)) > 1e-3  # the spring does move it
