@@ -102,7 +102,9 @@ class Functional(Layout):
             cost = model.cost()
         self.pieces = Pieces(model, grid, self.n, self.args, self.width, psi_samples)
         self.inputs = inputs
-        held = HeldChoices(self, grid, self.pieces) if inputs == "held" and signs == "exact" else None
+        # (a model with unknown T or parameters is held through the model solve() wraps it in)
+        held = HeldChoices(self, grid, self.pieces) if inputs == "held" and signs == "exact" \
+            and not model.has_unknowns else None
         if held is not None:
             probe = np.concatenate([np.nan_to_num(model.x0), np.zeros(self.m)])[None, :]
             held = held if held.pairs.size and (held.coords(probe) or self.m) else None
