@@ -6,9 +6,8 @@ the descent on each (:mod:`qdframe.descent`) and the verdict on the last
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +28,8 @@ from .schemes import Scheme
 from .start import LINE, MODEL, SIMULATED, LineStarts, Starts
 from .status import Status
 from .verdict import certify_result
+
+FAILED_DESCENTS = (Status.STATIONARY, Status.MAX_ITER, Status.FAILED)  # the discrete problem not solved
 
 DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
 DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
@@ -122,20 +123,13 @@ def solve(
     with `accuracy` and no `scheme` the scheme is radau-iia (order 3).
     """
     clock = time.perf_counter()
+    given = {name: value for name, value in locals().items() if name not in ("model", "free_T", "parameters", "clock")}
     if isinstance(model, str):
         model = load_model(model)
     if free_T is not None or parameters:  # a copy with T free or fixed, or other guesses of p
         model = unknowns.restated(model, free_T, parameters)
     if model.has_unknowns:  # T or p found with x: the model on s = t/T with constant states
-        wrapper = unknowns.Unknowns(model)
-        given = dict(locals())
-        arguments = {name: given[name] for name in inspect.signature(solve).parameters
-                     if name not in ("model", "free_T", "parameters")}
-        if mesh is not None:
-            arguments["mesh"] = np.asarray(mesh, dtype=float) / (model.T if model.free_T else 1.0)
-        result = unknowns.unwrap(wrapper, solve(wrapper, **arguments))
-        result.wall_time_s = time.perf_counter() - clock
-        return result
+        return _with_unknowns(model, given, clock)
     def planned(model: InclusionModel, simulate: bool = simulate_start) -> _Plan:
         return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol, eps_floor,
                      continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy, max_nodes,
@@ -157,7 +151,32 @@ def solve(
         _penalty_verdict(functional, result, rounds, plan.target)
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
-    return _summarized(plan, run, functional, result)
+    result = _summarized(plan, run, functional, result)
+    return _free_instead(functional, result, lambda: solve(model, **{**given, "inputs": "free"}), clock)
+
+
+def _with_unknowns(model: InclusionModel, given: dict, clock: float) -> SolveResult:
+    """The solve of a model with T or parameters unknown: its wrapper on s = t/T, unwrapped."""
+    wrapper = unknowns.Unknowns(model)
+    if given["mesh"] is not None:
+        given = {**given, "mesh": np.asarray(given["mesh"], dtype=float) / (model.T if model.free_T else 1.0)}
+    result = unknowns.unwrap(wrapper, solve(wrapper, **given))
+    result.wall_time_s = time.perf_counter() - clock
+    return result
+
+
+def _free_instead(functional: Functional, result: SolveResult, free: Callable[[], SolveResult],
+                  clock: float) -> SolveResult:
+    """`result`, or where its last functional held the inputs and the discrete problem was not
+    solved there (a held choice cannot follow a surface that moves it, for one), the solve
+    with each point's own choice (`free()`), saying so."""
+    if functional.held is None or result.status not in FAILED_DESCENTS:
+        return result
+    retried = free()
+    retried.remarks.append(f"with the inputs held the solve ended {result.status}: each point chose its own "
+                           f"(inputs=\"free\")")
+    retried.wall_time_s = time.perf_counter() - clock
+    return retried
 
 
 def _raised_penalty(model: InclusionModel, plan: _Plan, run: _Run, planned, progress) -> tuple[_Plan, _Run, list]:

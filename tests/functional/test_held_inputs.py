@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import sympy
 
 import qdframe
 from qdframe.bench.references import SchemeRule, judge
@@ -154,3 +155,29 @@ def test_a_moved_interval_is_held_in_its_own_place():
     moved = velocity_less_friction[pairs[:, 0]] - velocity_less_friction[pairs[:, 1]]
     assert np.allclose(moved, spring[pairs[:, 0]] - spring[pairs[:, 1]], atol=1e-6)
     assert np.max(np.abs(moved)) > 1e-3  # the spring does move it
+
+
+class Track(SetModel):
+    """A clock c' = 1 and x' ∈ [−2, 2] kept on the surface x = sin(c): the choice must follow cos."""
+
+    name = "track"
+    state_names = "c x"
+    default_T = 3.0
+    default_x0 = (0.0, 0.0)
+
+    def sets(self, c, x):
+        return {c: 1, x: Interval(-2, 2)}
+
+    def surface_equations(self, c, x):
+        return [x - sympy.sin(c)]
+
+
+def test_where_a_held_choice_cannot_meet_the_problem_the_solve_chooses_freely():
+    """The surface moves x within every interval: no held choice keeps it there, the held solve
+    ends stationary, and the default call solves with each point's own choice, saying so."""
+    result = qdframe.solve(Track())
+    assert result.status == "solved"
+    assert result.options["inputs"] == "free"
+    assert "with the inputs held the solve ended stationary" in result.message
+    t = np.asarray(result.t)
+    assert np.max(np.abs(np.asarray(result.x)[:, 1] - np.sin(t))) <= 1e-6
