@@ -29,8 +29,6 @@ from .start import LINE, MODEL, SIMULATED, LineStarts, Starts
 from .status import Status
 from .verdict import certify_result
 
-FAILED_DESCENTS = (Status.STATIONARY, Status.MAX_ITER, Status.FAILED)  # the discrete problem not solved
-
 DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
 DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
 DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`nodes` is required for one)
@@ -152,7 +150,7 @@ def solve(
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     result = _summarized(plan, run, functional, result)
-    return _free_instead(functional, result, lambda: solve(model, **{**given, "inputs": "free"}), clock)
+    return _free_instead(plan, functional, result, lambda: solve(model, **{**given, "inputs": "free"}), clock)
 
 
 def _with_unknowns(model: InclusionModel, given: dict, clock: float) -> SolveResult:
@@ -165,12 +163,13 @@ def _with_unknowns(model: InclusionModel, given: dict, clock: float) -> SolveRes
     return result
 
 
-def _free_instead(functional: Functional, result: SolveResult, free: Callable[[], SolveResult],
+def _free_instead(plan: "_Plan", functional: Functional, result: SolveResult, free: Callable[[], SolveResult],
                   clock: float) -> SolveResult:
-    """`result`, or where its last functional held the inputs and the discrete problem was not
-    solved there (a held choice cannot follow a surface that moves it, for one), the solve
-    with each point's own choice (`free()`), saying so."""
-    if functional.held is None or result.status not in FAILED_DESCENTS:
+    """`result`, or where its last functional held the inputs and a Newton-type descent ended
+    `stationary` there (no held choice meets the problem: one cannot follow a surface that
+    moves the state within an interval), the solve with each point's own choice (`free()`),
+    saying so. (A first-order method's stationary or max_iter says nothing of the held choice.)"""
+    if functional.held is None or result.status != Status.STATIONARY or not plan.solver.full_steps:
         return result
     retried = free()
     retried.remarks.append(f"with the inputs held the solve ended {result.status}: each point chose its own "
