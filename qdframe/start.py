@@ -140,8 +140,8 @@ def _objective(functional: Functional, xi: np.ndarray) -> float:
 def straight_line(functional: Functional) -> np.ndarray | None:
     """ξ of :func:`straight_guess` on `functional`'s grid (the model's controls); None where the
     model gives no end value. The second start where the model's own ends at a local minimum
-    of I: paper-7.3's (the paper's x ≡ 0) stops at I = 1.4e-5 on 11 points, this one is
-    solved in 4 iterations."""
+    of I: paper-7.3's (the paper's x ≡ 0) stalls on its coarsest grid, where this one is
+    solved (docs/paper.md has the figures)."""
     model = functional.model
     if not len(model.end_indices):
         return None

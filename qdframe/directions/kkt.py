@@ -32,9 +32,8 @@ factorization pivots (SuperLU, partial pivoting): an LDLᵀ without pivoting los
   guesses: a cost piece that leaves the tie keeps its row, with zero coefficients.)
 * **Dense columns bordered.** A free start value x_i(0), an unknown parameter or a free T
   (:mod:`qdframe.unknowns`) is a column of H with an entry in every node's υ row. Factored
-  in place, SuperLU's fill depends on whether its diagonal pivot is accepted: on a block
-  with one unknown coefficient at N = 10001 one system filled 1.1e6 entries and the next,
-  of the same pattern, 3.4e7 under a fresh COLAMD (4.5 s against 0.09 s). Such columns
+  in place, SuperLU's fill depends on whether its diagonal pivot is accepted, and swings
+  by more than 10× between two systems of the same pattern (docs/benchmarks.md). Such columns
   (`_dense_columns`) are bordered instead: the rest K_RR is factored as above (banded),
   and the |D| × |D| Schur complement K_DD − K_DR·K_RR⁻¹·K_RD is solved densely: one
   solve with |D| + 1 right-hand sides of one factorization. gauss-newton hands H over

@@ -35,7 +35,7 @@ class Skeleton:
     """The ξ-independent part of the linearized system of one functional: each variable's
     columns at every node, E, and the constant states' columns map R with E on the reduced
     columns (:meth:`LinearizedSystem.reduced`). gauss-newton keeps it between the steps of a
-    solve (at N = 1e5 E and its reduction cost ~0.1 s a step to rebuild)."""
+    solve (on a fine grid, E and its reduction are a large part of a step to rebuild)."""
 
     def __init__(self, functional: "Functional") -> None:
         self.f = functional
