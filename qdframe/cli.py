@@ -94,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--signs", choices=("exact", "band"), default="exact",
                        help="sign terms a·Sgn(s): exact selections λ ∈ Sgn(s) (default) or the C¹ band")
     solve.add_argument("--inputs", choices=("held", "free"), default="held",
-                       help="a fixed set's choice (a bounded input) and the controls: held on each mesh interval's "
+                       help="the choice in each fixed set (a bounded input): held on each mesh interval's "
                             "stages (default) or free at every point")
     solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
     solve.add_argument("--residual-tol", type=positive_float, default=1e-8,

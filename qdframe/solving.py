@@ -91,7 +91,7 @@ def solve(
     `default_scheme` (implicit Euler unless the model says otherwise). `signs` "exact" gives every sign
     term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied to s by the natural map λ = clip(λ + c·s, −1, 1),
     c = `selection_scale` (the result's `selections`); "band" uses each term's C¹ band instead. `inputs`
-    "held" keeps a fixed set's choice and the controls u one per mesh interval of radau-iia
+    "held" keeps the choice in each fixed set (a bounded input) one per mesh interval of radau-iia
     (:mod:`qdframe.functional.held`); "free" lets every point choose.
 
     Stops `solved` when the objective and I are ≤ tol (the model's default tol if

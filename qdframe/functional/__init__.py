@@ -85,7 +85,7 @@ class Functional(Layout):
         """`signs`: "exact" (a selection λ ∈ Sgn(s) per sign term and node, tied by σ) or
         "band" (the C¹ band of :class:`~qdframe.model.SignTerm`, no selections);
         `selection_scale` is c in σ's natural map; `inputs`: "free" (each point's own choice
-        in the sets and controls) or "held" (one per mesh interval: η, :mod:`.held`)."""
+        in the sets) or "held" (one per mesh interval in each fixed set: η, :mod:`.held`)."""
         if signs not in SIGN_MODES:
             raise InputError("signs", " or ".join(f'"{mode}"' for mode in SIGN_MODES), signs)
         if inputs not in INPUT_MODES:
@@ -107,7 +107,7 @@ class Functional(Layout):
             and not model.has_unknowns else None
         if held is not None:
             probe = np.concatenate([np.nan_to_num(model.x0), np.zeros(self.m)])[None, :]
-            held = held if held.pairs.size and (held.coords(probe) or self.m) else None
+            held = held if held.pairs.size and held.coords(probe) else None
         self.held = held
         self.values = Values(
             layout=self, grid=grid, pieces=self.pieces, surface=surface, cost=cost,

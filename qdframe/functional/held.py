@@ -1,21 +1,23 @@
-"""η: the sets' choices held across the stages of each mesh interval (``inputs="held"``).
+"""η: the choices in fixed sets held across the stages of each mesh interval (``inputs="held"``).
 
 A collocation scheme with s ≥ 2 stages inside each mesh interval (Radau IIA) has one
-velocity z per stage, so where a block's set F_b is not a point, and for the controls u,
-each stage makes its own choice: x' on the interval is the polynomial through them. With
-inputs held, the choice is one per interval, as direct collocation holds a control on
-each control stage (nosnoc): where the motion between switches is a polynomial of the
-scheme's degree under a constant choice (a mass pushed by a constant force against
-Coulomb friction), the collocation polynomial is that motion itself, and the trajectory
-is a true motion of the inclusion, not an approximation of one.
+velocity z per stage, so where a block's set F_b is not a point each stage makes its own
+choice in it: x' on the interval is the polynomial through them. With inputs held, the
+choice is one per interval, as direct collocation holds a control on each control stage
+(nosnoc): where the motion between switches is a polynomial of the scheme's degree under a
+constant choice (a mass pushed by a bounded force against Coulomb friction), the
+collocation polynomial is that motion itself, and the trajectory is a true motion of the
+inclusion, not an approximation of one.
 
-The choice is held where the block's set proper is a fixed set U moved by the state,
-f(y) + U (a bounded input: v' ∈ −k·p + [−U, U] − F·Sgn(v)), and for the controls; a set
-whose shape changes with the state (x' ∈ [0.5·x, 1.5·x]) keeps each point's choice, since a
-choice held across a bound that moves would leave the set between the points. The choice
-of a set block b at point p is its place in U: its velocity less f_b(y_p) (each max-group's
-first piece) and its sign terms' Filippov points, c_{p,b} = z_{p,b} − f_b(y_p) −
-Σ sense·a(y_p)·λ_p, and of the controls, u_p. With the stages (k, 1) … (k, s) of interval k,
+Only a block whose set proper (without its sign terms) is a fixed set is held: constant
+pieces, more than one in some max-group, no min-groups (a bounded input v' ∈ [−U, U] −
+F·Sgn(v)). Its choice at point p is its velocity less its sign terms' Filippov points,
+c_{p,b} = z_{p,b} − Σ sense·a(y_p)·λ_p, exactly what the replay certificate
+(:func:`qdframe.estimates.replay`) continues between the points, so the input the result
+holds is the input its certificate drives. A set that moves with the state (v' ∈ −p +
+[−2, 2], x' ∈ [0.5·x, 1.5·x]) and the controls u keep each point's choice: held, such a
+choice is no longer the replay's input, and on the problems measured (docs/method.md) the
+refinement took more points, not fewer. With the stages (k, 1) … (k, s) of interval k,
 
     η = ½ Σ_k Σ_{i<s} w_{k,i} ‖c_{k,i} − c_{k,s}‖²,
 
@@ -63,63 +65,37 @@ class HeldChoices:
         self.pairs = held_pairs(self.grid)
 
     def blocks(self, y: np.ndarray) -> list[int]:
-        """The blocks whose set proper (without its sign terms) is a fixed set U moved by the
-        state, f(y) + U, and not a point: no min-groups, more than one piece in some max-group,
-        and in each max-group pieces that differ by constants (found once, at y's first point
-        and at that point moved by one in every argument)."""
+        """The blocks whose set proper (without its sign terms) is a fixed set that is not a
+        point: constant pieces, more than one in some max-group, no min-groups (found once, at
+        y's first point and at that point moved by one in every argument)."""
         if self._blocks is None:
             probes = np.concatenate([y[:1], y[:1] + 1.0])
-            self._blocks = [b for b, block in enumerate(self.layout.blocks) if self._translated(block, probes)]
+            self._blocks = [b for b, block in enumerate(self.layout.blocks) if self._fixed(block, probes)]
         return self._blocks
 
-    def _translated(self, block, probes: np.ndarray) -> bool:
-        """Whether `block`'s set proper is f(y) + U, U fixed and not a point."""
+    def _fixed(self, block, probes: np.ndarray) -> bool:
+        """Whether `block`'s set proper is a fixed set of more than one point."""
         if block.min_groups or not block.max_groups:
             return False
         try:
             groups = [self.pieces.max_group(block, group, probes) for group in block.max_groups]
         except ModelOutputError:  # not finite at a probe: kept free
             return False
-        fixed = all(np.allclose(f[0] - f[0, :1], f[1] - f[1, :1], rtol=0.0, atol=1e-12 * (1.0 + np.abs(f).max()))
-                    and np.array_equal(jac - jac[:, :1], np.zeros_like(jac)) for f, jac in groups)
-        return fixed and any(f.shape[1] > 1 for f, _ in groups)
-
-    def _anchors(self, y: np.ndarray, gradients: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """f(y) of the held blocks (each max-group's first piece, summed), (N, H'), and with
-        `gradients` its Jacobian in y = (x, u), (N, H', n + m)."""
-        coords = self.coords(y)
-        f = np.zeros((y.shape[0], len(coords)))
-        jac = np.zeros((y.shape[0], len(coords), self.layout.args)) if gradients else None
-        start = 0
-        for b in self.blocks(y):
-            block = self.layout.blocks[b]
-            columns = slice(start, start + block.size)
-            for group in block.max_groups:
-                values, grads = self.pieces.max_group(block, group, y)
-                f[:, columns] += values[:, 0]
-                if gradients:
-                    jac[:, columns] += grads[:, 0]
-            start += block.size
-        return f, jac
+        constant = all(np.array_equal(f[0], f[1]) and not np.any(jac) for f, jac in groups)
+        return constant and any(f.shape[1] > 1 for f, _ in groups)
 
     def coords(self, y: np.ndarray) -> list[int]:
         """The z coordinates of the held blocks."""
         return [c for b in self.blocks(y) for c in self.layout.blocks[b].coords]
 
     def choices(self, xi: np.ndarray, gradients: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """c (N, H): the held blocks' choices in their fixed sets U (z_b less f_b(y) and the sign
-        terms' points), then the controls; with `gradients`, ∂c/∂(x, u, λ) (N, H, n + m + p)
-        (∂c/∂z is the identity on the held blocks' z, and 0 on the controls)."""
+        """c (N, H): the held blocks' choices (z_b less the sign terms' points); with `gradients`,
+        ∂c/∂(x, u, λ) (N, H, n + m + p) (∂c/∂z is the identity on the held blocks' z)."""
         layout = self.layout
         y, lam = layout.arguments(xi), layout.selections(xi)
-        z = layout.split(xi)[1]
         coords = self.coords(y)
-        anchor, anchor_grads = self._anchors(y, gradients)
-        choice = np.concatenate([z[:, coords] - anchor, layout.controls(xi)], axis=1)
+        choice = layout.split(xi)[1][:, coords]
         grads = np.zeros(choice.shape + (layout.width,)) if gradients else None
-        if gradients:
-            grads[:, : len(coords), : layout.args] = -anchor_grads
-            grads[:, len(coords):, layout.n: layout.args] = np.eye(layout.m)[None]  # ∂u/∂u
         place = {c: i for i, c in enumerate(coords)}
         for k, (b, term) in zip(layout.sign_columns, layout.sign_terms):
             i = place.get(layout.blocks[b].coords[0])
@@ -159,6 +135,6 @@ class HeldChoices:
         for points, sign in ((first, 1.0), (last, -1.0)):
             np.add.at(out, points, sign * layout.embed(np.einsum("ph,phd->pd", r, grads[points])))
             z_part = np.zeros((points.size, layout.dim))
-            z_part[:, layout.n + np.asarray(coords, dtype=int)] = sign * r[:, : len(coords)]
+            z_part[:, layout.n + np.asarray(coords, dtype=int)] = sign * r
             np.add.at(out, points, z_part)
         return out
