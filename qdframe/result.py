@@ -204,7 +204,8 @@ class SolveResult:
             ("nodes, T", f"{self.nodes}, {self.T:.10g}" + (" (found)" if self.options.get("free_T") else "")
              + _grids(self.options.get("grids", []), self.nodes)
              + ("  (nonuniform mesh)" if self.options.get("uniform") is False else "")),
-            ("scheme, signs", f"{self.options.get('scheme', '—')}, {self.options.get('signs', '—')}"),
+            ("scheme, signs, inputs", f"{self.options.get('scheme', '—')}, {self.options.get('signs', '—')}, "
+                                      f"{self.options.get('inputs', '—')}"),
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),

@@ -237,7 +237,6 @@ class _Plan:
     requested: str | Scheme  # the scheme of the result (the first grids may bootstrap with implicit Euler)
     signs: str
     selection_scale: float
-    inputs: str
 
 
 def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
@@ -292,7 +291,7 @@ def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, d
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
     return _Plan(options, solver, search, grids, stages, starts, refining,
-                 DEFAULT_ACCURACY if accuracy is None else float(accuracy), requested, signs, selection_scale, inputs)
+                 DEFAULT_ACCURACY if accuracy is None else float(accuracy), requested, signs, selection_scale)
 
 
 @dataclass
@@ -460,7 +459,7 @@ def _summarized(plan: _Plan, run: _Run, functional: Functional, result: SolveRes
     result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,
                       "start": run.first_start, "grids": grids, "iterations_per_grid": per_grid,
                       "scheme": functional.grid.scheme.name, "signs": plan.signs,
-                      "selection_scale": plan.selection_scale, "inputs": plan.inputs,
+                      "selection_scale": plan.selection_scale, "inputs": "held" if functional.held else "free",
                       "uniform": functional.grid.uniform}
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
     if result.status == Status.MAX_ITER:  # the whole budget, over all grids
