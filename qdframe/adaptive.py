@@ -38,6 +38,7 @@ MONITOR_FLOOR = 0.05  # the error density never falls below this fraction of its
 PIN_CROSSINGS = True  # crossings too: Radau IIA keeps its order across them (left out, the pendulum with pivot friction was not solved)
 FALLBACK_SCHEME = "radau-iia"  # where the first solve is not solved: this scheme …
 FALLBACK_NODES = 101  # … on this many uniform points
+STALL_FALL = 2.0  # an estimate above its target that fell less than this over the last two refinements has stalled
 
 
 def tolerance(accuracy: float, result: SolveResult, functional: Functional) -> float:
@@ -101,7 +102,7 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
             functional = like(functional, Grid.from_mesh(functional.grid.mesh_times, scheme, functional.grid.switches))
             result = own(functional, result)
     best: Certified | None = None
-    note, spent = "", []
+    note, spent, values = "", [], []
     while result.status == Status.SOLVED:
         functional, result = settle_switches(functional, result, own)
         target = tolerance(accuracy, result, functional)
@@ -112,6 +113,12 @@ def to_accuracy(functional: Functional, result: SolveResult, own: Resolve, compa
         if best is None or found.value < best.estimate.value:  # type: ignore[operator]
             best = Certified(functional, result, found)
         if found.value <= target:
+            break
+        values.append(found.value)
+        if len(values) >= 3 and values[-1] * STALL_FALL > values[-3]:  # more points do not bring it down
+            note = (f"the estimate stalls near {found.value:.1e} over the last two refinements "
+                    f"({values[-3]:.1e}, {values[-2]:.1e}, {values[-1]:.1e}): the trajectory's own choices do "
+                    f"not drive the true motion closer as the mesh is refined")
             break
         tau = refine(functional.grid, found.local, target, found.value)  # type: ignore[arg-type]
         pinned = switch_times(functional, iterate(functional, result), crossings=PIN_CROSSINGS, merge=False)

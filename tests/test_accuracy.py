@@ -10,6 +10,7 @@ import qdframe
 from qdframe.bench.accuracy import exact_models
 from qdframe.errors import InputError
 from qdframe.grid import Grid
+from qdframe.sets import Interval, SetModel, Sgn
 
 EXACT = exact_models()  # every registered model with an exact solution, the plugin's too
 RESIDUAL_TOL = 1e-8  # solve's default: the pointwise checks, relative to max(1, max|x|)
@@ -200,3 +201,29 @@ def test_the_papers_method_runs_on_a_nonuniform_mesh():
     assert native.objective <= 1e-3 and native.solution_error <= 1e-3
     newton = qdframe.solve("paper-7.1", mesh=tau)
     assert newton.solved and np.array_equal(newton.t, tau) and newton.solution_error <= 1e-12
+
+
+class _LateBreakaway(SetModel):
+    """A spring block held by friction 1.5 − 0.5·c above the force bound 1 until c = t = 1:
+    p' = v, v' ∈ −p + [−1, 1] − (1.5 − 0.5·c)·Sgn(v), c' = 1; from rest at 0 to rest at 0.3, T = 4.
+    Its discrete solutions ride the break-away threshold, where the replayed motion does not
+    follow them: the estimate stays near 0.09 however fine the mesh (a new-user trial's problem)."""
+
+    name = "late-breakaway"
+    state_names = "p v c"
+    default_T = 4.0
+    default_x0 = (0.0, 0.0, 0.0)
+    default_xT = {"p": 0.3, "v": 0.0}
+
+    def sets(self, p, v, c):
+        return {p: v, v: -p + Interval(-1, 1) - (1.5 - 0.5 * c) * Sgn(v), c: 1}
+
+
+def test_an_estimate_that_stalls_under_refinement_stops_the_refinement():
+    """Where two refinements do not halve the estimate, more points will not certify: the call
+    ends `uncertified` after three estimates and says why, instead of refining to max_nodes
+    (84841 points before this rule)."""
+    result = qdframe.solve(_LateBreakaway())
+    assert result.status == "uncertified"
+    assert "the estimate stalls near" in result.message
+    assert result.nodes < 1000 and result.options["grids"][-1] < 1000
