@@ -35,10 +35,10 @@ the inclusion; the estimate is
         conditions + the integration's uncertainty + 64ε·max(1, |x|),
 
 the uncertainty being how far the motion integrated at 10 times the tolerance moves
-(measured only when the rest of the estimate meets its target). Where DOP853 took every
-piece between the input's kinks and the events in one accepted step (a motion polynomial
-there: a constant input against Coulomb friction), a looser run would take the same steps
-and measure nothing: the uncertainty is then the sum of the steps' tolerances,
+(measured only when the rest of the estimate meets its target). Each piece between the
+input's kinks and the events tries its whole span as its first step; where DOP853 took
+every piece in one accepted step (a motion polynomial there, or smooth on the mesh's
+scale), a looser run would take the same steps and measure nothing: the uncertainty is then the sum of the steps' tolerances,
 2·steps·tol·max(1, |x|) (each accepted step's error is within atol + rtol·|x| by DOP853's
 own estimate). A model without sign terms
 has no events to locate: its motion x' = P_F(x, u)(w(t)) is found at every point at once by

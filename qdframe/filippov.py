@@ -364,7 +364,9 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     starts, pieces, switches, modes = [], [], [], [(t, mode)]
     events = stalls = 0
     left: dict[int, float] = {}  # when each vector sign last began to leave rest
-    whole = False  # the last piece was one step: the next one tries its whole span first (an input's kinks)
+    # a piece tries its whole span as its first step where it ends at a break (an input's kink: a
+    # driven replay restarts at every mesh point) or the piece before it was one step
+    whole = False
     steps, one_step = 0, True
     while t < T:
         stop = _after(stops, t)
@@ -376,7 +378,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         span = min(until, stop) - t
         run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, t + span),
                         x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched],
-                        first_step=span if whole and method == "DOP853" else None)
+                        first_step=span if (whole or stop < T) and method == "DOP853" else None)
         whole = run.t.size == 2
         steps += run.t.size - 1
         one_step = one_step and (whole and method == "DOP853" or run.t.size == 1)
