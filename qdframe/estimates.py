@@ -63,6 +63,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .functional import Functional
+from .functional.held import less_sign_points
 from .grid import Grid
 from .result import SolveResult
 from .status import Status
@@ -206,11 +207,7 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     xi = exact.pack(result.x, result.z, result.u, result.selections if functional.signs == "exact" else None)
     y = exact.arguments(xi)
     # the sets' choice: z without the sign terms' part B(y)·λ, the trajectory's own selections
-    lam = exact.selections(xi)
-    w = result.z.copy()
-    for (b, term), k in zip(exact.sign_terms, exact.sign_columns):
-        coord = exact.blocks[b].coords[0]
-        w[:, coord] -= term.sense * exact.pieces.amplitude_values(exact.blocks[b], term, y) * lam[:, k]
+    w = less_sign_points(exact, exact.pieces, result.z, y, exact.selections(xi))[0]
     t = grid.t
 
     def rule(values: np.ndarray) -> Callable[[float], np.ndarray]:

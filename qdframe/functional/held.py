@@ -50,6 +50,25 @@ def held_pairs(grid: Grid) -> np.ndarray:
     return np.stack([(start + stages).ravel(), np.repeat(grid.mesh[1:], scheme.stages - 1)], axis=1)
 
 
+def less_sign_points(layout: Layout, pieces: Pieces, z: np.ndarray, y: np.ndarray, lam: np.ndarray,
+                     gradients: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+    """z (N, n) less every sign term's Filippov point sense·a(y)·λ in its coordinate: the choice
+    each velocity makes in its set proper (what the replay continues between the points); with
+    `gradients`, its derivative in (x, u, λ), (N, n, n + m + p) (in z it is the identity)."""
+    choice = z.copy()
+    grads = np.zeros(choice.shape + (layout.width,)) if gradients else None
+    for k, (b, term) in zip(layout.sign_columns, layout.sign_terms):
+        i = layout.blocks[b].coords[0]
+        amplitude, groups = pieces._amplitude(layout.blocks[b], term, y)
+        choice[:, i] -= term.sense * amplitude * lam[:, k]
+        if gradients:
+            grads[:, i, layout.args + k] -= term.sense * amplitude
+            for piece in groups:  # a(y) = Σ max_q a_q: the active piece's gradient
+                top = piece.grads[np.arange(y.shape[0]), np.argmax(piece.values, axis=1)]
+                grads[:, i, : layout.args] -= (term.sense * lam[:, k])[:, None] * top
+    return choice, grads
+
+
 @dataclass(eq=False)
 class HeldChoices:
     """η's choices, residuals and Jacobian elements: one of the parts of
@@ -92,23 +111,10 @@ class HeldChoices:
         """c (N, H): the held blocks' choices (z_b less the sign terms' points); with `gradients`,
         ∂c/∂(x, u, λ) (N, H, n + m + p) (∂c/∂z is the identity on the held blocks' z)."""
         layout = self.layout
-        y, lam = layout.arguments(xi), layout.selections(xi)
+        y = layout.arguments(xi)
         coords = self.coords(y)
-        choice = layout.split(xi)[1][:, coords]
-        grads = np.zeros(choice.shape + (layout.width,)) if gradients else None
-        place = {c: i for i, c in enumerate(coords)}
-        for k, (b, term) in zip(layout.sign_columns, layout.sign_terms):
-            i = place.get(layout.blocks[b].coords[0])
-            if i is None:
-                continue
-            amplitude, groups = self.pieces._amplitude(layout.blocks[b], term, y)
-            choice[:, i] -= term.sense * amplitude * lam[:, k]
-            if gradients:
-                grads[:, i, layout.args + k] -= term.sense * amplitude
-                for piece in groups:  # a(y) = Σ max_q a_q: the active piece's gradient
-                    top = piece.grads[np.arange(y.shape[0]), np.argmax(piece.values, axis=1)]
-                    grads[:, i, : layout.args] -= (term.sense * lam[:, k])[:, None] * top
-        return choice, grads
+        choice, grads = less_sign_points(layout, self.pieces, layout.split(xi)[1], y, layout.selections(xi), gradients)
+        return choice[:, coords], None if grads is None else grads[:, coords]
 
     def residual(self, xi: np.ndarray) -> np.ndarray:
         """c_{k,i} − c_{k,s} for every pair (P, H)."""
