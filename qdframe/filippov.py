@@ -36,13 +36,16 @@ from __future__ import annotations
 
 import bisect
 import itertools
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import OdeSolution, solve_ivp
+from scipy.sparse.csgraph import connected_components
 
+from .complementarity import box_lcp, labels
 from .errors import QdframeError
 
 SURFACE_TOL = 1e-11  # |s_i| at most this (relative to max(1, |x|)): switch i is at its surface
@@ -285,53 +288,161 @@ def _margins(fields: Fields, mode: tuple[int, ...], at: Sequence[int], balls: Se
 def choose_mode(fields: Fields, x: np.ndarray, current: tuple[int, ...] | None = None, crossed: int | None = None,
                 released: tuple[int, int] | None = None, name: str = "", t: float = 0.0,
                 balls: Sequence[tuple[int, int]] = (), aims: dict[int, np.ndarray] | None = None) -> tuple[int, ...]:
-    """The Filippov mode at a point: enumerate {0, +1, −1} for every switch at its surface
-    (|s_i| ≤ SURFACE_TOL·max(1, |x|), sliding in `current`, or the `crossed` one), keep
-    the consistent modes (every margin ≥ −MARGIN_TOL) and take the one of largest smallest
-    margin. `crossed`: switch i reached s_i = 0 from side current[i], which it cannot keep;
-    `released`: (i, ±1), sliding switch i's λ reached ±1: it leaves to that side.
+    """The Filippov mode at a point: of the modes {0, +1, −1} of the switches at their surface
+    (|s_i| ≤ SURFACE_TOL·max(1, |x|), sliding in `current`, or the `crossed` one), the
+    consistent ones (every margin ≥ −MARGIN_TOL), the one of largest smallest margin, the
+    first in the order (0, +1, −1) of the switches where several are. `crossed`: switch i
+    reached s_i = 0 from side current[i], which it cannot keep; `released`: (i, ±1), sliding
+    switch i's λ reached ±1: it leaves to that side.
 
     A vector sign (`balls`, indexed by its first switch) is at its surface where |s| ≤
     SURFACE_TOL·max(1, |x|) (or stuck in `current`, or `crossed`: it stopped); there it is
-    stuck (0) or LEAVING, elsewhere MOVING; `released` = (a, LEAVING) when its |λ_eq| reached 1."""
-    values = fields.s
+    stuck (0) or LEAVING, elsewhere MOVING; `released` = (a, LEAVING) when its |λ_eq| reached 1.
+
+    The switches at their surface fall into groups that do not move each other's s (no entry
+    of ∇s·B between two groups): each group is decided on its own, so k independent blocks
+    cost 3k margin checks, not 3^k. A group of at most ENUMERATED modes is enumerated; a
+    larger group of scalar sign terms is solved as a box LCP (:mod:`qdframe.complementarity`),
+    and the switches whose margin there is within AMBIGUOUS of 0 are enumerated around it."""
     near = SURFACE_TOL * max(1.0, float(np.max(np.abs(x), initial=0.0)))
     ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
-    radius = {a: float(np.linalg.norm(values[a : a + k])) for a, k in balls}
-    at = {i for i, c in enumerate(values) if i not in ball_of and abs(c) <= near}
-    at |= {a for a, _ in balls if radius[a] <= near}
+    at = {i for i, c in enumerate(fields.s) if i not in ball_of and abs(c) <= near}
+    at |= {a for a, k in balls if float(np.linalg.norm(fields.s[a : a + k])) <= near}
     if current is not None:
         at |= {i for i, m in enumerate(current) if m == 0 and (i not in ball_of or ball_of[i][0] == i)}
-    if crossed is not None:
-        at.add(crossed)
-    if released is not None:
-        at.add(released[0])
-    at_sorted = sorted(at)
-    fixed = [1 if c > 0 else -1 for c in values]
+    at |= {i for i in (crossed, None if released is None else released[0]) if i is not None}
+    fixed = [1 if c > 0 else -1 for c in fields.s]
     for a, k in balls:
         fixed[a : a + k] = [MOVING] * k
-    best, best_margin = None, -np.inf
-    options = [(0, LEAVING) if i in ball_of else (0, 1, -1) for i in at_sorted]
-    for choice in itertools.product(*options):
-        mode = list(fixed)
-        for i, m in zip(at_sorted, choice):
-            if i in ball_of:
-                a, k = ball_of[i]
+    rule = _Rule(fields, tuple(fixed), ball_of, balls, aims, current, crossed, released)
+    candidates = [rule.candidates(group) for group in _groups(fields, sorted(at), ball_of)]
+    if any(not found for found in candidates):
+        raise FilippovError(f"{name}: no consistent Filippov mode at t = {t:.17g} (switches at the surface: "
+                            f"{', '.join(str(i) for i in sorted(at))})")
+    # the largest smallest margin over all groups, and in each group its first mode that reaches it
+    # (the first of the whole product in its order, as one enumeration of every group together takes)
+    best = min((max(value for _, value in found) for found in candidates), default=np.inf)
+    mode = list(fixed)
+    for found in candidates:
+        for part, value in found:
+            if value >= best:
+                rule.put(mode, part)
+                break
+    return tuple(mode)
+
+
+ENUMERATED = 3**6  # a group of switches with at most this many modes is enumerated
+AMBIGUOUS = 1e-6  # a margin of a box-LCP mode below this (λ units): the switch's other modes are tried too
+
+
+def _groups(fields: Fields, at: list[int], ball_of: dict[int, tuple[int, int]]) -> list[list[int]]:
+    """The switches `at` their surface (a vector sign by its first switch) in groups that move
+    each other's s, ∇s_i·B_j ≠ 0, each in increasing order: connected components."""
+    if len(at) <= 1:
+        return [at] if at else []
+    columns = [list(range(i, i + ball_of[i][1])) if i in ball_of else [i] for i in at]
+    flat = [c for cols in columns for c in cols]
+    unit = np.repeat(np.arange(len(at)), [len(cols) for cols in columns])
+    response = fields.ds[flat] @ fields.B[:, flat]
+    rows, cols = np.nonzero(response)
+    coupled = np.zeros((len(at), len(at)), dtype=bool)
+    coupled[unit[rows], unit[cols]] = True
+    count, label = connected_components(coupled, directed=True, connection="weak")
+    return [[at[j] for j in np.flatnonzero(label == g)] for g in range(count)]
+
+
+@dataclass
+class _Rule:
+    """The consistency rule of :func:`choose_mode` over one group of switches at their surface,
+    the others at `fixed` (which leaves the group's margins unchanged: no coupling)."""
+
+    fields: Fields
+    fixed: tuple[int, ...]
+    ball_of: dict[int, tuple[int, int]]
+    balls: Sequence[tuple[int, int]]
+    aims: dict[int, np.ndarray] | None
+    current: tuple[int, ...] | None
+    crossed: int | None
+    released: tuple[int, int] | None
+
+    def options(self, i: int) -> tuple[int, ...]:
+        return (0, LEAVING) if i in self.ball_of else (0, 1, -1)
+
+    def put(self, mode: list[int], part: dict[int, int]) -> None:
+        for i, m in part.items():
+            if i in self.ball_of:
+                a, k = self.ball_of[i]
                 mode[a : a + k] = [m] * k
             else:
                 mode[i] = m
-        if crossed is not None and current is not None and mode[crossed] == current[crossed]:
-            continue
-        if released is not None and mode[released[0]] != released[1]:
-            continue
-        margins = _margins(fields, tuple(mode), at_sorted, balls, aims)
-        smallest = float(margins.min()) if margins.size else np.inf
-        if smallest >= -MARGIN_TOL and smallest > best_margin:
-            best, best_margin = tuple(mode), smallest
-    if best is None:
-        raise FilippovError(f"{name}: no consistent Filippov mode at t = {t:.17g} (switches at the surface: "
-                            f"{', '.join(str(i) for i in at_sorted)})")
-    return best
+
+    def value(self, group: list[int], part: dict[int, int]) -> float:
+        """The smallest margin of the group in `part` (−inf where `crossed` or `released` forbid it)."""
+        if self.crossed in part and self.current is not None and part[self.crossed] == self.current[self.crossed]:
+            return -np.inf
+        if self.released is not None and self.released[0] in part and part[self.released[0]] != self.released[1]:
+            return -np.inf
+        mode = list(self.fixed)
+        self.put(mode, part)
+        margins = _margins(self.fields, tuple(mode), group, self.balls, self.aims)
+        return float(margins.min()) if margins.size else np.inf
+
+    def enumerate(self, group: list[int], base: dict[int, int] | None = None,
+                  free: list[int] | None = None) -> list[tuple[dict[int, int], float]]:
+        """The consistent modes of the group, in the order (0, +1, −1) of its switches `free`
+        (all by default; the others as in `base`), each with its smallest margin."""
+        free = group if free is None else free
+        out = []
+        for choice in itertools.product(*(self.options(i) for i in free)):
+            part = dict(base or {})
+            part.update(zip(free, choice))
+            value = self.value(group, part)
+            if value >= -MARGIN_TOL:
+                out.append((part, value))
+        return out
+
+    def candidates(self, group: list[int]) -> list[tuple[dict[int, int], float]]:
+        """The group's consistent modes with their smallest margins, in enumeration order: all
+        of them where the group is small or holds a vector sign, else the box LCP's and its
+        neighbours' in its ambiguous switches."""
+        if math.prod(len(self.options(i)) for i in group) <= ENUMERATED or any(i in self.ball_of for i in group):
+            return self.enumerate(group)
+        lam = self._solved(group)
+        if lam is None:
+            raise FilippovError(f"no Filippov mode found for the {len(group)} coupled switches {group} "
+                                "(Lemke's method ended on a ray: the coupling is not dissipative)")
+        part = dict(zip(group, labels(*self._system(group), lam)))
+        if self.released is not None and self.released[0] in part:
+            part[self.released[0]] = self.released[1]
+        mode = list(self.fixed)
+        self.put(mode, part)
+        margins = _margins(self.fields, tuple(mode), group, self.balls, self.aims)
+        order = np.argsort(margins, kind="stable")  # the least sure first
+        unsure = {group[j] for j in order[: round(math.log(ENUMERATED, 3))] if margins[j] < AMBIGUOUS}
+        return self.enumerate(group, part, sorted(unsure | ({self.crossed} & set(group))))
+
+    def _system(self, group: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """A = ∇s·B and b over the group's switches, the others at `fixed`: w = A·λ + b."""
+        fields = self.fields
+        mode = list(self.fixed)
+        self.put(mode, dict.fromkeys(group, 1))
+        lam = _solve_mode(fields, tuple(mode), self.balls, self.aims)[1]
+        lam[group] = 0.0
+        A = fields.ds[group] @ fields.B[:, group]
+        return A, fields.ds[group] @ (fields.g + fields.B @ lam)
+
+    def _solved(self, group: list[int]) -> np.ndarray | None:
+        A, b = self._system(group)
+        if self.released is not None and self.released[0] in group:  # its side is given: λ_i = ±1
+            i = group.index(self.released[0])
+            keep = [j for j in range(len(group)) if j != i]
+            lam = np.full(len(group), float(self.released[1]))
+            rest = box_lcp(A[np.ix_(keep, keep)], b[keep] + A[keep, i] * self.released[1])
+            if rest is None:
+                return None
+            lam[keep] = rest
+            return lam
+        return box_lcp(A, b)
 
 
 # ------------------------------------------------------------------------ integrate
@@ -374,7 +485,8 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         current, aimed = mode, dict(aims)
         scale = max(1.0, float(np.max(np.abs(x), initial=0.0)))
         method, until = _method(fields(inside(t), x), current, balls, scale, aimed, t, left)
-        watched = _events(fields, current, inside, balls, aimed, scale, min(REACH_ATOLS * atol, STOP_TOL / 2) * scale)
+        watched = _events(fields, current, inside, balls, aimed, scale, min(REACH_ATOLS * atol, STOP_TOL / 2) * scale,
+                          (t, x))
         span = min(until, stop) - t
         run = solve_ivp(lambda s, y: velocity(fields(inside(s), y), current, balls, aimed)[0], (t, t + span),
                         x, method=method, rtol=rtol, atol=atol, dense_output=True, events=[e for e, _ in watched],
@@ -398,6 +510,8 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
             (e,) = [j for j, hits in enumerate(run.t_events) if hits.size][:1]
             kind, i = watched[e][1]
             t, x = float(run.t_events[e][0]), run.y_events[e][0].copy()
+            if i is None:  # an event shared by several switches: the one at its extreme
+                i = watched[e][0].which(_inside(t, stop)(t), x)
             here = fields(_inside(t, stop)(t), x)
             near = max(1.0, float(np.max(np.abs(x), initial=0.0)))
             if kind == "release":
@@ -530,29 +644,67 @@ def _aims(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, int]],
 
 def _events(fields: _Cached, mode: tuple[int, ...], inside: Callable[[float], float],
             balls: Sequence[tuple[int, int]] = (), aims: dict[int, np.ndarray] | None = None,
-            scale: float = 1.0, reach: float = 0.0) -> list[tuple[Callable, tuple[str, int]]]:
-    """The terminal events of a piece in `mode`, each with (its kind, its switch); a moving
-    vector sign stops where ⟨s, aim⟩ reaches 0 or |s| falls to `reach`."""
-    out: list[tuple[Callable, tuple[str, int]]] = []
+            scale: float = 1.0, reach: float = 0.0, start: tuple[float, np.ndarray] | None = None
+            ) -> list[tuple[Callable, tuple[str, int | None]]]:
+    """The terminal events of a piece in `mode` from `start` = (t, x), each with (its kind, its
+    switch); a moving vector sign stops where ⟨s, aim⟩ reaches 0 or |s| falls to `reach`.
+
+    The scalar switches share two events, whatever their number: the first crossing, min_i m_i·s_i
+    over the moving ones reaching 0, and the first release, max_i |λ_i| − 1 over the sliding ones
+    reaching 0 (one linear solve for all); the switch is the one at the minimum (maximum) there
+    (the event's `which`). One event per switch would cost k calls a step and a root search
+    for every switch a long step passes, k² over k stops. A switch that starts the piece at
+    its event's zero (just crossed, or released on a tie) has an event of its own."""
+    out: list[tuple[Callable, tuple[str, int | None]]] = []
     ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
-    for i, m in enumerate(mode):
-        if i in ball_of:
-            continue
-        if m == 0:
-            def release(t: float, x: np.ndarray, i: int = i) -> float:
+    scalar = [i for i in range(len(mode)) if i not in ball_of]
+    moving = np.array([i for i in scalar if mode[i] != 0], dtype=int)
+    sliding = np.array([i for i in scalar if mode[i] == 0], dtype=int)
+    sides = np.array([mode[i] for i in moving], dtype=float)
+    here = fields(inside(start[0]), start[1]) if start is not None else None
+    if moving.size:
+        away = np.ones(moving.size, dtype=bool) if here is None else sides * here.s[moving] > 0
+        together, alone = moving[away], moving[~away]
+        signs = sides[away]
+        if together.size:
+            def crossing(t: float, x: np.ndarray) -> float:
+                return float(np.min(signs * fields(inside(t), x).s[together]))
+
+            crossing.which = lambda t, x: int(together[np.argmin(signs * fields(t, x).s[together])])
+            crossing.terminal, crossing.direction = True, -1.0
+            out.append((crossing, ("cross", None)))
+        for i in alone:
+            def crossing_one(t: float, x: np.ndarray, i: int = int(i)) -> float:
+                return float(fields(inside(t), x).s[i])
+
+            crossing_one.terminal, crossing_one.direction = True, -float(mode[i])
+            out.append((crossing_one, ("cross", int(i))))
+    if sliding.size:
+        def selections(t: float, x: np.ndarray) -> np.ndarray:
+            return np.abs(velocity(fields(inside(t), x), mode, balls, aims)[1][sliding])
+
+        try:
+            inside_band = np.ones(sliding.size, dtype=bool) if here is None else \
+                np.abs(velocity(here, mode, balls, aims)[1][sliding]) < 1.0
+        except np.linalg.LinAlgError:
+            inside_band = np.ones(sliding.size, dtype=bool)
+        shared, own = sliding[inside_band], sliding[~inside_band]
+        for members in ([shared] if shared.size else []) + [np.array([i]) for i in own]:
+            def release(t: float, x: np.ndarray, members: np.ndarray = members) -> float:
                 try:
-                    return abs(velocity(fields(inside(t), x), mode, balls, aims)[1][i]) - 1.0
+                    return float(np.max(np.abs(velocity(fields(inside(t), x), mode, balls, aims)[1][members]))) - 1.0
                 except np.linalg.LinAlgError:
                     return 1.0
 
-            release.terminal, release.direction = True, 1.0
-            out.append((release, ("release", i)))
-        else:
-            def crossing(t: float, x: np.ndarray, i: int = i) -> float:
-                return float(fields(inside(t), x).s[i])
+            def which(t: float, x: np.ndarray, members: np.ndarray = members) -> int:
+                try:
+                    return int(members[np.argmax(np.abs(velocity(fields(t, x), mode, balls, aims)[1][members]))])
+                except np.linalg.LinAlgError:
+                    return int(members[0])
 
-            crossing.terminal, crossing.direction = True, -float(m)
-            out.append((crossing, ("cross", i)))
+            release.which = which
+            release.terminal, release.direction = True, 1.0
+            out.append((release, ("release", None if members is shared else int(members[0]))))
     for a, k in balls:
         aim = (aims or {}).get(a, np.eye(k)[0])
         if mode[a] == MOVING:

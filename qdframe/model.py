@@ -17,6 +17,14 @@ An exact equation z_i = f(x) is the one-piece max-group f (a singleton set).
 
 With unknown controls u (`control_names`, paper Example 7.3) every piece is a function
 of y = (x, u), an array of shape (N, n + m), and its gradients have n + m columns.
+
+A piece callable may carry an optional attribute `formulas`: `formulas(symbols)` (a min
+group's `formulas(symbols, psi)`) returns its values, flattened in the order the callable
+returns them, as SymPy formulas of the given symbols for y (and ψ). Where every piece of a
+model has it, the event-driven integrator behind the replay certificate and the simulated
+start evaluates the model's whole Filippov system at one point in one compiled call, not
+one call per piece (:mod:`qdframe.model_system`). The set language and
+:mod:`qdframe.ready_pieces` attach it; a hand-written piece without it still works.
 """
 
 from __future__ import annotations
@@ -173,6 +181,8 @@ class SetBlock:
             value, grad = rhs(x)
             return value[:, None, None], grad[:, None, None, :]
 
+        if hasattr(rhs, "formulas"):
+            pieces.formulas = rhs.formulas  # type: ignore[attr-defined]
         return cls((coord,), (MaxGroup(pieces, name or f"z{coord}"),), (), name, signs)
 
 

@@ -12,7 +12,10 @@ for all nodes at once. The common ones, ready made:
   :class:`~qdframe.model.SignTerm` (each |y_i| = max{y_i, −y_i}, paper Section 5);
 - :func:`repeated`: a constant row at every node (a constant gradient or piece value).
 
-Models written with :mod:`qdframe.sets` need none of these: SymPy derives their gradients.
+Each carries the optional `formulas` hook (its values as formulas of y's symbols), with
+which :func:`qdframe.model_system.model_system` evaluates a whole model at one point in
+one compiled call. Models written with :mod:`qdframe.sets` need none of these: SymPy
+derives their gradients.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ def affine(coefficients: Mapping[int, float], width: int, constant: float = 0.0)
     def rhs(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return constant + y @ gradient, repeated(gradient, y.shape[0])
 
+    rhs.formulas = lambda symbols: [constant + sum(value * symbols[i] for i, value in coefficients.items())]
     return rhs
 
 
@@ -70,6 +74,7 @@ def abs_sum(indices: Sequence[int], scale: float, width: int) -> tuple[Callable,
             np.negative(values[:, 0], out=values[:, 1])  # −(scale·y) = (−scale)·y exactly
             return values, grads
 
+        pieces.formulas = lambda symbols: [scale * symbols[i], -scale * symbols[i]]
         return pieces
 
     return tuple(group(i) for i in indices)
@@ -90,4 +95,5 @@ def ball_switch(indices: Sequence[int], width: int, matrix: Sequence[Sequence[fl
     def switch(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return y @ gradient.T, repeated(gradient, y.shape[0])
 
+    switch.formulas = lambda symbols: [sum(w * symbols[i] for w, i in zip(row, indices)) for row in weights]
     return BallSwitch(switch, weights.shape[0], name)

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import InclusionModel, MaxGroup, SetBlock, SignTerm
-from ..ready_pieces import coordinate, repeated
+from ..ready_pieces import affine, coordinate, repeated
 
 BAND = 1e-3
 
@@ -43,6 +43,7 @@ def _interval(lower: float, upper: float, width: int) -> MaxGroup:
         values = repeated(bounds, y.shape[0])
         return values, np.zeros((y.shape[0], 2, 1, width))
 
+    pieces.formulas = lambda symbols: [lower, upper]  # the optional hook of qdframe.model: one compiled call
     return MaxGroup(pieces, f"[{lower:g}, {upper:g}]")
 
 
@@ -61,18 +62,13 @@ class CoulombRestToRest(InclusionModel):
     band = BAND
 
     def blocks(self) -> tuple[SetBlock, ...]:
-        def minus_velocity(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            gradient = np.zeros_like(y)
-            gradient[:, 1] = -1.0
-            return -y[:, 1], gradient  # F·Sgn(−v) = −F·Sgn(v)
-
         return (
             SetBlock.equation(0, coordinate(1, 2), "p' = v"),
             SetBlock(
                 (1,),
                 max_groups=(_interval(-self.force_bound, self.force_bound, 2),),
                 name="v' ∈ [−U, U] − F·Sgn(v)",
-                signs=(SignTerm(self.friction, minus_velocity, self.band, "F·Sgn(v)"),),
+                signs=(SignTerm(self.friction, affine({1: -1.0}, 2), self.band, "F·Sgn(v)"),),  # F·Sgn(−v) = −F·Sgn(v)
             ),
         )
 
@@ -110,6 +106,8 @@ class SlidingModeTerminal(InclusionModel):
             gradient[:, 0], gradient[:, 1] = -3 * SLIDING_B * y[:, 0] ** 2, -1.0
             return -(y[:, 1] + SLIDING_B * y[:, 0] ** 3), gradient
 
+        minus_c1.formulas = lambda y: [-(y[0] + SLIDING_A * y[1] ** 2)]  # the optional hook of qdframe.model
+        minus_c2.formulas = lambda y: [-(y[1] + SLIDING_B * y[0] ** 3)]
         bound = self.input_bound
         return (
             SetBlock.equation(0, coordinate(2, 4), "x1' ∈ v1 − Sgn(c1)", (SignTerm(1.0, minus_c1, self.band, "Sgn(c1)"),)),

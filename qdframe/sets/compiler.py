@@ -63,6 +63,7 @@ class _Vectorized:
         self.count = len(exprs)
         self.width = len(symbols)
         self.psi = tuple(psi)
+        self.exprs, self.symbols = tuple(exprs), tuple(symbols)
         grads = [[sp.diff(e, s) for s in symbols] for e in exprs]
         self.entries = [(q, j) for q in range(self.count) for j in range(self.width) if grads[q][j] != 0]
         outputs = list(exprs) + [grads[q][j] for q, j in self.entries]
@@ -77,6 +78,12 @@ class _Vectorized:
         for (q, j), value in zip(self.entries, out[self.count :]):
             grads[:, q, j] = value
         return values, grads
+
+    def formulas(self, symbols: Sequence[sp.Symbol], psi: Sequence[Any] = ()) -> list[sp.Expr]:
+        """The values as formulas of other `symbols` for y (and `psi`, symbols or numbers, for ψ):
+        the pieces' `formulas` hook (:mod:`qdframe.model_system` compiles a whole model from them)."""
+        mapping = dict(zip(self.symbols, symbols)) | dict(zip(self.psi, psi))
+        return [sp.sympify(e).xreplace(mapping) for e in self.exprs]
 
     def values(self, y: np.ndarray, psi: np.ndarray | None = None) -> np.ndarray:
         """The values of __call__ alone, without computing the gradients."""
@@ -105,17 +112,23 @@ def _max_pieces(vertices: list[tuple[sp.Expr, ...]], symbols) -> Callable:
         values, grads = flat(y)
         return values.reshape(-1, m, k), grads.reshape(-1, m, k, flat.width)
 
-    return pieces
+    return _with_formulas(pieces, flat)
+
+
+def _with_formulas(function: Callable, vectorized: _Vectorized) -> Callable:
+    """`function` with the `formulas` hook of the lambdified formulas it evaluates."""
+    function.formulas = vectorized.formulas  # type: ignore[attr-defined]
+    return function
 
 
 def _min_group(formulas: list[sp.Expr], symbols, dim: int, label: str) -> MinGroup:
     vectorized = _Vectorized(formulas, symbols, _psi(dim))
-    return MinGroup(lambda y, psi: vectorized(y, psi), label, values=vectorized.values)
+    return MinGroup(_with_formulas(lambda y, psi: vectorized(y, psi), vectorized), label, values=vectorized.values)
 
 
 def _scalar_pieces(exprs: list[sp.Expr], symbols) -> Callable:
     vectorized = _Vectorized(exprs, symbols)
-    return lambda y: vectorized(y)
+    return _with_formulas(lambda y: vectorized(y), vectorized)
 
 
 SAME_SWITCH_RTOL = 1e-12  # coefficient ratios equal to this: two switches are one surface
@@ -173,7 +186,7 @@ class _Switches:
                 return switch, mapping
         expanded = tuple(sp.expand(e) for e in exprs)
         vectorized = _Vectorized(list(expanded), self.symbols)
-        switch = BallSwitch(lambda y: vectorized(y), len(expanded), f"Sgn({', '.join(_s(e) for e in expanded)})")
+        switch = BallSwitch(_with_formulas(lambda y: vectorized(y), vectorized), len(expanded), f"Sgn({', '.join(_s(e) for e in expanded)})")
         self.balls.append((terms, switch))
         return switch, [(j, 1.0) for j in range(len(expanded))]
 
@@ -204,7 +217,7 @@ def _switch_cached(expr: sp.Expr, symbols: tuple) -> Callable:
         values, grads = vectorized(y)
         return values[:, 0], grads[:, 0, :]
 
-    return switch
+    return _with_formulas(switch, vectorized)
 
 
 # ------------------------------------------------------------------- compilation
