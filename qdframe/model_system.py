@@ -189,8 +189,9 @@ class _Compiled:
                         for f in getattr(group.term.switch, "function", group.term.switch).formulas(ys)]
         except AttributeError:  # a piece without the `formulas` hook
             return None
-        if any(not part for part in segments):
-            return None
+        formulas = [sp.sympify(f) for part in segments for f in part] + [sp.sympify(f) for f in switches]
+        if any(not part for part in segments) or not set().union(*(f.free_symbols for f in formulas)) <= set(ys):
+            return None  # an empty group, or formulas in more than y (a model's unknown parameters)
         return cls(functional, ys, segments, switches, kinds)
 
     def __call__(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
