@@ -60,11 +60,11 @@ class Certified:
 
 
 def _timed(functional: Functional, result: SolveResult, companion: Resolve, certificate: str | None,
-           spent: list[float], target: float | None) -> Estimate:
+           spent: list[float], target: float | None, verdict: bool = False) -> Estimate:
     """:func:`estimate` against `target`, its time added to `spent`."""
     clock = time.perf_counter()
     try:
-        return estimate(functional, result, companion, certificate, target)
+        return estimate(functional, result, companion, certificate, target, verdict)
     finally:
         spent.append(time.perf_counter() - clock)
 
@@ -75,7 +75,8 @@ def on_fixed_grid(functional: Functional, result: SolveResult, companion: Resolv
     if not wanted:
         return Certified(functional, result, Estimate(None, None, detail="no error estimate: estimate=False"))
     spent: list[float] = []
-    found = _timed(functional, result, companion, certificate, spent, tolerance(accuracy, result, functional))
+    found = _timed(functional, result, companion, certificate, spent, tolerance(accuracy, result, functional),
+                   verdict=True)
     return Certified(functional, result, found, seconds=sum(spent))
 
 

@@ -92,6 +92,7 @@ class Estimate:
     companion: SolveResult | None = None
     reference: np.ndarray | None = None
     switch_times: tuple[float, ...] | None = None  # the replayed motion's, where that motion is the solution (an IVP)
+    above: float | None = None  # no value: the estimate is at least this, above its target (a replay stopped early)
 
 
 def solutions_form_a_set(functional: Functional) -> bool:
@@ -119,18 +120,21 @@ def certificate_for(functional: Functional) -> str:
 
 
 def estimate(functional: Functional, result: SolveResult, resolve: Resolve, certificate: str | None = None,
-             target: float | None = None) -> Estimate:
+             target: float | None = None, verdict: bool = False) -> Estimate:
     """The error estimate of a solved `result` on `functional`'s grid by `certificate`
     (None: :func:`certificate_for`); an unsolved result has none. A replay of a problem
     with one solution that the integrator cannot carry out falls back to bisection. Given
     the `target` it is held against, a replay already above it skips measuring its own
-    integration error (the estimate cannot certify either way)."""
+    integration error (the estimate cannot certify either way); where the estimate is only a
+    `verdict` (a fixed grid's: no refinement reads its local errors), a replay stops as soon as
+    the difference it has seen exceeds the target, with no value but that lower bound (`above`)."""
     if result.status != Status.SOLVED:
         return Estimate(None, None, detail=f"the result is {result.status}")
     chosen = certificate or certificate_for(functional)
     if chosen == REPLAY:
-        found = replay(functional, result, target)
-        if found.value is not None or solutions_form_a_set(functional) or certificate == REPLAY:
+        found = replay(functional, result, target, stop=verdict)
+        if found.value is not None or found.above is not None or solutions_form_a_set(functional) \
+                or certificate == REPLAY:
             return found
         fallback = bisection(functional, result, resolve)
         fallback.detail = f"{found.detail}; by bisection instead" if fallback.value is not None else \
@@ -195,10 +199,12 @@ def selection_amplitude(functional: Functional, result: SolveResult) -> float:
                 for b, term in functional.sign_terms), default=0.0)
 
 
-def replay(functional: Functional, result: SolveResult, target: float | None = None) -> Estimate:
+def replay(functional: Functional, result: SolveResult, target: float | None = None, stop: bool = False) -> Estimate:
     """The estimate from the true motion driven by the trajectory's own choices (module
     docstring); its integration error is measured (a second integration, 10× looser) unless
-    the rest of the estimate is above `target` already."""
+    the rest of the estimate is above `target` already. With `stop` (and a target) the
+    integration ends at the first piece after which the difference at the points passed
+    exceeds the target: the estimate can only be larger (no value; `above` is what it saw)."""
     from .filippov import FilippovError, integrate
     from .model_system import model_system
 
@@ -217,17 +223,23 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     inputs = exact.m or solutions_form_a_set(exact)  # a choice to continue between the points
     if inputs and not exact.sign_terms:
         return _collocation_replay(exact, result)
+    scale = max(1.0, float(np.max(np.abs(result.x))))
+    watch = _Watch(t, result.x, target - ROUNDING * scale) if stop and target is not None else None
     try:
         system = model_system(exact, controls, rule(w) if inputs else None,
                               breaks=grid.mesh_times[1:-1] if inputs else ())
-        motion = integrate(system, result.x[0], grid.T, rtol=REPLAY_TOL, atol=REPLAY_TOL)
+        motion = integrate(system, result.x[0], grid.T, rtol=REPLAY_TOL, atol=REPLAY_TOL, halt=watch)
     except (FilippovError, np.linalg.LinAlgError, ValueError) as exc:
         return Estimate(None, None, REPLAY, f"no replay: {exc}")
+    if motion.halted is not None:
+        seen = watch.seen + ROUNDING * scale
+        return Estimate(None, None, REPLAY, f"the true motion {'its choices drive' if inputs else 'from its x(0)'} "
+                        f"is {seen:.2e} from it by t = {motion.halted:.4g}, above the target {target:.2e} "
+                        "(the replay stopped there)", above=seen)
     reference = motion(t)
     difference = result.x - reference
     miss = exact.boundary_error(np.concatenate([reference, np.zeros_like(reference)], axis=1))
     miss += _surface_miss(exact, reference)
-    scale = max(1.0, float(np.max(np.abs(result.x))))
     value = float(np.max(np.abs(difference))) + miss + ROUNDING * scale
     if target is not None and value > target:  # cannot certify: an allowance for the integration instead
         value += UNMEASURED * REPLAY_TOL * scale
@@ -243,6 +255,22 @@ def replay(functional: Functional, result: SolveResult, target: float | None = N
     solution = not inputs and initial_value_problem(exact)  # the replayed motion is the solution itself
     return Estimate(value, _local(grid, difference, 1.0), REPLAY, detail, reference=reference,
                     switch_times=tuple(motion.switch_times) if solution else None)
+
+
+class _Watch:
+    """The `halt` of a replay that stops once it cannot certify: the largest |x(t_k) − x_ref(t_k)|
+    over the points t_k each finished piece covers, against `limit`."""
+
+    def __init__(self, t: np.ndarray, x: np.ndarray, limit: float) -> None:
+        self.t, self.x, self.limit, self.seen = t, x, limit, 0.0
+
+    def __call__(self, start: float, end: float, piece) -> bool:
+        first, last = np.searchsorted(self.t, [start, end], side="left")
+        last += int(last < self.t.size and self.t[last] == end)
+        if last > first:
+            moved = np.abs(self.x[first:last] - np.atleast_2d(piece(self.t[first:last])).T)
+            self.seen = max(self.seen, float(np.max(moved)))
+        return self.seen > self.limit
 
 
 def _collocation_replay(functional: Functional, result: SolveResult) -> Estimate:

@@ -106,6 +106,7 @@ class FilippovTrajectory:
     seconds: float = field(default=0.0, compare=False)
     steps: int = 0  # accepted steps over all pieces
     one_step: bool = False  # every piece one accepted DOP853 step (a polynomial motion between an input's kinks)
+    halted: float | None = None  # where `integrate` was told to stop before T
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         """x(t), (K, n), for the times t (K,): each time from the piece containing it."""
@@ -447,9 +448,11 @@ class _Rule:
 
 # ------------------------------------------------------------------------ integrate
 def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float = 1e-12, atol: float = 1e-12, *,
-              t0: float = 0.0) -> FilippovTrajectory:
+              t0: float = 0.0, halt: Callable[[float, float, OdeSolution], bool] | None = None) -> FilippovTrajectory:
     """The Filippov motion of `system` from x(t0) = x0 over [t0, T]: DOP853 (dense output)
     between terminal events, the mode re-chosen by :func:`choose_mode` at every event.
+    `halt(start, end, piece)`, asked after each piece, ends the integration there when it
+    says True (the trajectory's `halted` is then the time it reached).
 
     A vector sign (the system's `balls`) that moves ends its piece where ⟨s, aim⟩ reaches 0,
     aim the direction of s when the piece began: a stop where |s| ≈ 0 there (|s| → 0 along
@@ -479,6 +482,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     # driven replay restarts at every mesh point) or the piece before it was one step
     whole = False
     steps, one_step = 0, True
+    halted = None
     while t < T:
         stop = _after(stops, t)
         inside = _inside(t, stop)
@@ -500,6 +504,9 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
         if end > t:
             starts.append(t)
             pieces.append(run.sol)
+            if halt is not None and halt(t, end, run.sol):
+                halted = end
+                break
         stalls = stalls + 1 if end <= t + 1e-14 * max(1.0, abs(t)) else 0
         events += 1
         if stalls > MAX_STALLS or events > MAX_EVENTS + len(stops):
@@ -553,7 +560,7 @@ def integrate(system: FilippovSystem, x0: Sequence[float], T: float, rtol: float
     if not pieces:
         raise FilippovError(f"{system.name}: nothing integrated over [{t0}, {T}]")
     return FilippovTrajectory(np.array(starts), pieces, tuple(switches), modes, T, events,
-                              time.perf_counter() - clock, steps, one_step)
+                              time.perf_counter() - clock, steps, one_step, halted)
 
 
 def _to_rest(fields: Fields, x: np.ndarray, t: float, stop: float, mode: tuple[int, ...],

@@ -20,8 +20,10 @@ on the velocity of a block) one location is exact; otherwise the switch is re-lo
 the mesh that has a point there, and converges (see :mod:`qdframe.adaptive`).
 
 The times returned lie in [0, T] (an extrapolation past an end, such as a block at rest
-at t = 0 that starts to move, is the end itself), and times closer than the mesh step
-there are one switch (two terms that change regime together, located twice): their mean.
+at t = 0 that starts to move, is the end itself). One switching function's times closer
+than the mesh step there are one switch (located twice): their mean; two functions' times
+are one only within SAME_TIME·T (two blocks that stop 0.08 s apart on a mesh of 0.1 s
+stopped twice).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import numpy as np
 
 from .functional import Functional
 
+SAME_TIME = 1e-9  # relative to T: two switching functions' switches this close are one time (they switch together)
 ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (s = 0 up to the solve's residuals)
 SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime
 
@@ -48,16 +51,18 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
     grid = functional.grid
     y, lam = functional.arguments(xi), functional.selections(xi)
     s = functional.switch_values(y, gradients=False)[0]
-    found: list[float] = []
+    found: list[np.ndarray] = []
     for group in functional.selection_groups:
         if group.width == 1:
             pair = s[:, group.first], lam[:, group.first]
         else:
             pair = _ball_regimes(s[:, group.columns], lam[:, group.columns])
-        found += [time for time, crossing in _locate(grid.t, grid.mesh, *pair) if crossings or not crossing]
-    times = np.clip(np.asarray(found, dtype=float), grid.t[0], grid.t[-1]) + 0.0  # + 0.0: no −0
-    times = np.unique(np.round(times, 14))
-    return merge_close(times, grid.mesh_times) if merge else times
+        located = [time for time, crossing in _locate(grid.t, grid.mesh, *pair) if crossings or not crossing]
+        times = np.clip(np.asarray(located, dtype=float), grid.t[0], grid.t[-1]) + 0.0  # + 0.0: no −0
+        times = np.unique(np.round(times, 14))
+        found.append(merge_close(times, grid.mesh_times) if merge else times)
+    times = np.unique(np.concatenate(found)) if found else np.zeros(0)
+    return merge_close(times, grid.mesh_times, SAME_TIME * (grid.t[-1] - grid.t[0])) if merge else times
 
 
 def polish(times: np.ndarray, events: Sequence[float], mesh: np.ndarray) -> np.ndarray:
@@ -85,14 +90,16 @@ def polish(times: np.ndarray, events: Sequence[float], mesh: np.ndarray) -> np.n
     return np.unique(out)
 
 
-def merge_close(times: np.ndarray, mesh: np.ndarray) -> np.ndarray:
+def merge_close(times: np.ndarray, mesh: np.ndarray, within: float | None = None) -> np.ndarray:
     """Increasing `times` with runs closer than the mesh resolution merged into their mean:
     consecutive times a ≤ b are one when b − a is at most the larger length of the mesh
-    intervals of [mesh_0, mesh_K] that hold a and b."""
+    intervals of [mesh_0, mesh_K] that hold a and b (or at most `within`, given)."""
     if times.size < 2:
         return times
 
     def step(time: float) -> float:
+        if within is not None:
+            return within
         j = int(np.clip(np.searchsorted(mesh, time, side="right") - 1, 0, mesh.size - 2))
         return float(mesh[j + 1] - mesh[j])
 

@@ -62,11 +62,23 @@ def test_the_default_call_is_certified_to_its_target():
 
 def test_a_fixed_grid_is_uncertified_where_its_estimate_misses_the_target():
     """nodes=101 on the stop-then-stick block: the discrete problem is solved, its error
-    (3e-2) is far above 1e-6: not solved, and the message says what to do."""
+    (3e-2) is far above 1e-6: not solved, and the message says what to do. The replay stops
+    where the difference it has seen passes the target (no estimate: it is above the target);
+    with a target the trajectory meets, the replay runs to T and the estimate bounds the error."""
     result = qdframe.solve("block-stop-stick", nodes=101)
     assert result.status == "uncertified" and result.converged and not result.solved
-    assert result.error_estimate >= result.solution_error > 1e-3
+    assert result.error_estimate is None and result.solution_error > 1e-3
+    assert "above the target" in result.message and "the replay stopped there" in result.message
     assert "more nodes, or accuracy=" in result.message
+    stopped_at = float(result.message.split("by t = ")[1].split(",")[0])
+    assert 0.0 < stopped_at < 0.5 * result.t[-1]
+    model = qdframe.load_model("block-stop-stick")
+    functional = Functional(model, Grid(model.T, 101, result.options["scheme"]))
+    target = 1e-6 * max(1.0, float(np.abs(result.x).max()))
+    stopped = estimates.replay(functional, result, target, stop=True)
+    whole = estimates.replay(functional, result, target)
+    assert stopped.value is None and target < stopped.above <= whole.value
+    assert whole.value >= result.solution_error > target  # the whole replay: the same verdict
     unestimated = qdframe.solve("block-stop-stick", nodes=101, estimate=False)
     assert unestimated.status == "uncertified" and unestimated.error_estimate is None
 

@@ -92,7 +92,7 @@ def test_a_circle_is_found():
 LAYERS = [
     ("foundation", ("qdframe.errors", "qdframe.argtypes", "qdframe.status", "qdframe.registry", "qdframe.progress")),
     ("modeling", ("qdframe.model", "qdframe.ready_pieces", "qdframe.sets", "qdframe.quasidifferential", "qdframe.grid",
-                  "qdframe.schemes", "qdframe.filippov", "qdframe.models")),
+                  "qdframe.schemes", "qdframe.filippov", "qdframe.complementarity", "qdframe.models")),
     ("solver", ("qdframe.",)),  # every module not named in another layer
     ("tools", ("qdframe.authoring", "qdframe.bench", "qdframe.cli", "qdframe.__main__")),
     ("package", ("qdframe",)),

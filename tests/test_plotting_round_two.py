@@ -36,8 +36,8 @@ def result73():
 
 @pytest.fixture(scope="module")
 def stick():
-    # a visible error band, a switch, and (from the model's own start) a band start
-    return solve("block-stop-stick", nodes=101, simulate_start=False)
+    # a visible error band (bisection: both ends given), a switch, and (from the model's own start) a band start
+    return solve("block-stop-stick-bvp", nodes=101, simulate_start=False)
 
 
 def _drawn(result):

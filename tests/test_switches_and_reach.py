@@ -39,11 +39,19 @@ class TwoStops(SetModel):
         return {a: -Sgn(a), b: -Sgn(b)}
 
 
-def test_switches_closer_than_the_mesh_step_are_one():
-    coarse = qdframe.solve(TwoStops(), nodes=101, estimate=False)  # h = 0.02: one event to this mesh
-    assert len(coarse.switch_times) == 1 and 1.0 <= coarse.switch_times[0] <= 1.004
-    fine = qdframe.solve(TwoStops(), nodes=1001, estimate=False)  # h = 0.002: two
+def test_two_terms_switching_closer_than_the_mesh_step_are_two_switches():
+    """Two blocks that stop 0.004 apart are two stops on a mesh of 0.02 too (each term's own
+    time, located from its own smooth side; their mean, which is neither, was reported once)."""
+    coarse = qdframe.solve(TwoStops(), nodes=101, estimate=False)  # h = 0.02
+    assert np.allclose(coarse.switch_times, [1.0, 1.004], atol=0.02)
+    fine = qdframe.solve(TwoStops(), nodes=1001, estimate=False)  # h = 0.002
     assert np.allclose(fine.switch_times, [1.0, 1.004], atol=1e-6)
+
+
+def test_one_terms_times_closer_than_the_mesh_step_are_one():
+    mesh = np.linspace(0.0, 1.0, 11)
+    assert np.allclose(merge_close(np.array([0.5, 0.52]), mesh), [0.51])
+    assert np.allclose(merge_close(np.array([0.5, 0.52]), mesh, within=1e-9), [0.5, 0.52])
 
 
 def test_merge_close_keeps_times_apart_by_more_than_the_local_step():

@@ -1,7 +1,7 @@
 """`qdframe bench …`: every benchmark subcommand, its arguments and what it runs.
 
 ``add_bench_parser(commands, parser_class)`` adds ``bench`` and its subcommands
-(directions, hard, friction, accuracy, scale, unknowns, time-optimal, pages, run) to the ``qdframe`` parser, and
+(directions, hard, friction, accuracy, scale, unknowns, certificates, time-optimal, pages, run) to the ``qdframe`` parser, and
 ``main_bench(args, argv)`` runs the one chosen. Argument types and checks are the
 command line's own (:mod:`qdframe.argtypes`).
 """
@@ -68,6 +68,16 @@ def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> N
     bench_unknowns.add_argument("--models", type=names, metavar="NAME,NAME,..",
                                 help="models with unknowns (default block-friction-coefficient,block-stopping-time)")
     bench_unknowns.add_argument("--nodes", type=node_counts, metavar="N,N,..", help="grids (default 10001,100001)")
+    bench_certificates = benches.add_parser(
+        "certificates", help="the default call and fixed grids per model: the solve's seconds, the certificate's, "
+        "peak memory")
+    bench_certificates.add_argument("--models", type=names, metavar="NAME,NAME,..",
+                                    help="models (default: every registered one)")
+    bench_certificates.add_argument("--nodes", type=node_counts, metavar="N,N,..",
+                                    help="fixed grids (default 10001,100001)")
+    bench_certificates.add_argument("--blocks", type=counts, default=(), metavar="K,K,..",
+                                    help="also the default call on K independent Coulomb blocks (none by default)")
+    bench_certificates.add_argument("--out", metavar="DIR", help="write results.csv and report.md into DIR")
     _add_time_optimal_parser(benches)
     _add_run_parser(benches)
 
@@ -144,7 +154,8 @@ def main_bench(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.bench_command == "time-optimal":
         return _time_optimal(args, argv)
     return {"directions": _directions, "hard": _hard, "friction": _friction, "accuracy": _accuracy,
-            "scale": _scale, "pages": _pages, "unknowns": _unknowns}[args.bench_command](args)
+            "scale": _scale, "pages": _pages, "unknowns": _unknowns,
+            "certificates": lambda parsed: _certificates(parsed, argv)}[args.bench_command](args)
 
 
 def _pages(args: argparse.Namespace) -> int:
@@ -220,6 +231,19 @@ def _scale(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(scale.to_json(cells), indent=1) + "\n")
     print(scale.table(cells))
     return 1 if any(cell.error for cell in cells) else 0
+
+
+def _certificates(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    from . import certificate_cost
+
+    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise InputError("--out", "a directory (made if missing)", args.out)
+    rows = certificate_cost.run(args.models, args.nodes or certificate_cost.NODES, args.blocks, progress=_say())
+    if args.out:
+        certificate_cost.write(rows, args.out, shlex.join(["qdframe", *argv]))
+    print(certificate_cost.summary(rows))
+    print(certificate_cost.table(rows))
+    return 1 if any(row["status"] in ("error", "timed out") for row in rows) else 0
 
 
 def _unknowns(args: argparse.Namespace) -> int:

@@ -71,7 +71,8 @@ def test_the_simulated_start_is_what_solves_the_longer_release(example):
     constant = qdframe.solve(example.Released(), nodes=101, max_iter=100, simulate_start=False)
     assert not constant.converged and constant.I > 1e-2 and constant.options["start"] == "model"
     own = qdframe.solve(example.ReleasedFromSimulation(), nodes=101, simulate_start=False)
-    assert own.converged and own.status == "uncertified" and own.error_estimate > 1.0
+    assert own.converged and own.status == "uncertified" and own.error_estimate is None
+    assert "above the target" in own.message and "(the replay stopped there)" in own.message
 
 
 def test_numpys_sin_on_a_symbol_is_one_error_naming_sympy():
