@@ -48,6 +48,8 @@ the uncertainty its change when the sub-steps double), not point by point.
 For an initial-value problem x_ref is the solution, so this is the true error itself.
 Where the solutions form a set, it bounds how far the trajectory is from a true motion
 and how far that motion is from meeting the conditions (the benchmark's yardstick).
+Where the estimate is only a verdict (a fixed grid's), the replay stops at the first piece
+after which the distance it has seen passes the target: no value, that distance (`above`).
 
 Each estimate also gives the local error per mesh interval (how far x − x_other moves
 within it), which :func:`qdframe.adaptive.refine` equidistributes.

@@ -13,12 +13,15 @@ equivalent control, the solution of
 
 which keeps every ds_i/dt = 0 (i ∈ S). A piece ends at a terminal event: an s_i (i ∉ S)
 reaching 0 from its side, or a sliding |λ_i| reaching 1, or a break of the drift in t
-(an input's jump). There the new mode is chosen by enumerating the modes {+1, −1, 0} of
-the switches at the surface: a mode is consistent when its λ_S lie in [−1, 1] and every
+(an input's jump). There the new mode of the switches at the surface is chosen among
+{+1, −1, 0} for each: a mode is consistent when its λ_S lie in [−1, 1] and every
 other switch at the surface moves to its own side (m_i·ds_i/dt ≥ 0). Both are measured
 in λ units (ds_i/dt divided by |∇s_i·B_i|), so that at a transversal crossing or an
 attractive surface exactly one mode has a non-negative margin (Filippov's rule: attractive
-→ slide, transversal → cross); the mode of largest smallest margin is taken.
+→ slide, transversal → cross); the mode of largest smallest margin is taken. The switches
+fall into groups that do not move each other's s, each decided apart (:func:`choose_mode`:
+enumerated where small, a box LCP where large), so the choice grows with the groups' sizes,
+not as 3^k. The scalar switches share one crossing and one release event per piece.
 
 A vector sign (isotropic friction, `balls`: k consecutive switches s ∈ R^k with one
 selection vector λ ∈ B) has two regimes: MOVING, λ = s/|s|, and stuck (mode 0) on s = 0 with
@@ -35,6 +38,7 @@ and the benchmark's references use it.
 from __future__ import annotations
 
 import bisect
+import functools
 import itertools
 import math
 import time
@@ -167,6 +171,15 @@ def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, 
                 aims: dict[int, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
     """:func:`velocity`, and each stuck or leaving vector sign's equivalent control λ_eq (its
     first switch: λ_eq), the selection that would keep its s at 0."""
+    if not balls:  # scalar signs alone: the same numbers with the mode's layout made once
+        fixed, sliding = _scalar_layout(tuple(mode))
+        base = fields.g + fields.B @ fixed
+        if not sliding:
+            return base, fixed.copy(), {}
+        lam = fixed.copy()
+        grads = fields.ds[sliding]
+        lam[sliding] = _solved(grads @ fields.B[:, sliding], -(grads @ base))
+        return base + fields.B[:, sliding] @ lam[sliding], lam, {}
     lam = np.array(mode, dtype=float)
     ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}
     sliding = [i for i, m in enumerate(mode) if m == 0 or (i in ball_of and m == LEAVING)]
@@ -198,6 +211,16 @@ def _solve_mode(fields: Fields, mode: Sequence[int], balls: Sequence[tuple[int, 
             return base + fields.B[:, fixed] @ lam[fixed], lam, equivalent
         base = base + fields.B[:, sliding] @ lam[sliding]
     return base, lam, equivalent
+
+
+@functools.lru_cache(maxsize=4096)
+def _scalar_layout(mode: tuple[int, ...]) -> tuple[np.ndarray, list[int]]:
+    """λ of a mode of scalar switches with its sliding ones at 0, and those sliding ones."""
+    sliding = [i for i, m in enumerate(mode) if m == 0]
+    fixed = np.array(mode, dtype=float)
+    fixed[sliding] = 0.0
+    fixed.flags.writeable = False
+    return fixed, sliding
 
 
 def _solved(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
