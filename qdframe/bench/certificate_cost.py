@@ -34,7 +34,7 @@ from ..status import Status
 NODES = (10001, 100001)
 FIELDS = ("model", "grid", "status", "points", "seconds", "certificate_s", "solve_s", "peak_mb", "baseline_mb",
           "estimate", "message")
-CELL_TIMEOUT = 1800.0  # seconds a cell may take before it is recorded as timed out
+CELL_TIMEOUT = 300.0  # seconds a cell may take before it is recorded as timed out (--timeout)
 
 CHILD = r"""
 import json, resource, sys, time
@@ -73,13 +73,13 @@ def cell(model: str, grid: str, timeout: float = CELL_TIMEOUT) -> dict:
 
 
 def run(models: Sequence[str] | None = None, nodes: Sequence[int] = NODES, blocks: Sequence[int] = (),
-        progress: Callable[[str], None] | None = None) -> list[dict]:
+        progress: Callable[[str], None] | None = None, timeout: float = CELL_TIMEOUT) -> list[dict]:
     """Every cell: each model's default call and its fixed grids, then the block counts."""
     cells = [(name, grid) for name in (models if models is not None else names("models"))
              for grid in ("default", *map(str, nodes))] + [(f"blocks:{k}", "default") for k in blocks]
     rows = []
     for index, (name, grid) in enumerate(cells, 1):
-        rows.append(cell(name, grid))
+        rows.append(cell(name, grid, timeout))
         if progress is not None:
             row = rows[-1]
             progress(f"[{index}/{len(cells)}] {name} {grid}: {row['status']} in {row.get('seconds', 0):.2f} s, "
@@ -122,6 +122,15 @@ def summary(rows: Sequence[dict]) -> str:
     return "\n".join(out)
 
 
+def read(path: str | Path) -> list[dict]:
+    """The rows of a results.csv that :func:`write` made, numbers parsed back (empty: None)."""
+    texts = {"model", "grid", "status", "message"}
+    with open(path, newline="", encoding="utf-8") as handle:
+        return [{name: (None if value in ("", None) else value if name in texts else
+                        int(float(value)) if name == "points" else float(value))
+                 for name, value in raw.items()} for raw in csv.DictReader(handle)]
+
+
 def write(rows: Sequence[dict], folder: str | Path, command: str) -> None:
     """results.csv and report.md (the command, the summary and the table) into `folder`."""
     folder = Path(folder)
@@ -131,5 +140,13 @@ def write(rows: Sequence[dict], folder: str | Path, command: str) -> None:
         writer.writeheader()
         for row in rows:
             writer.writerow({name: row.get(name) for name in FIELDS})
-    (folder / "report.md").write_text(f"# What a certified answer costs\n\n`{command}`\n\n{summary(rows)}\n\n"
-                                      f"{table(rows)}\n", encoding="utf-8")
+    (folder / "report.md").write_text(f"# What a certified answer costs\n\n`{command}`\n\n| qdframe | {_version()} |\n"
+                                      f"|---|---|\n\n{summary(rows)}\n\n{table(rows)}\n", encoding="utf-8")
+
+
+def _version() -> str:
+    """qdframe's version and the commit of its source (as the run reports name it)."""
+    from .. import __version__
+    from .run import source_commit
+
+    return f"{__version__}, commit {source_commit() or 'unknown'}"

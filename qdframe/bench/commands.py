@@ -78,6 +78,8 @@ def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> N
     bench_certificates.add_argument("--blocks", type=counts, default=(), metavar="K,K,..",
                                     help="also the default call on K independent Coulomb blocks (none by default)")
     bench_certificates.add_argument("--out", metavar="DIR", help="write results.csv and report.md into DIR")
+    bench_certificates.add_argument("--timeout", type=positive_float, default=300.0,
+                                    help="seconds a cell may take, else it is recorded as timed out (default 300)")
     _add_time_optimal_parser(benches)
     _add_run_parser(benches)
 
@@ -238,7 +240,8 @@ def _certificates(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
     if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
         raise InputError("--out", "a directory (made if missing)", args.out)
-    rows = certificate_cost.run(args.models, args.nodes or certificate_cost.NODES, args.blocks, progress=_say())
+    rows = certificate_cost.run(args.models, args.nodes or certificate_cost.NODES, args.blocks, progress=_say(),
+                                timeout=args.timeout)
     if args.out:
         certificate_cost.write(rows, args.out, shlex.join(["qdframe", *argv]))
     print(certificate_cost.summary(rows))

@@ -18,6 +18,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
+from . import certificate_cost
 from .report import ranking, ratio_table, solver_times
 from .run import read_csv
 
@@ -28,6 +29,8 @@ BLOCKS: dict[str, tuple[str, Callable[[list[dict]], str]]] = {
     "standard ranking": ("standard", ranking),
     "standard ratios": ("standard", ratio_table),
     "directions times": ("directions", solver_times),
+    "certificate costs": ("certificates", lambda rows: certificate_cost.summary(rows) + "\n\n"
+                          + certificate_cost.table(rows)),
 }
 MARK = re.compile(r"(<!-- generated: (?P<name>[a-z ]+) -->\n)(?P<body>.*?)(\n<!-- end generated -->)", re.S)
 
@@ -49,6 +52,7 @@ def update(root: str | Path = ".", check: bool = False) -> list[Path]:
     pages that changed (with `check`, that would change, and writes nothing)."""
     root = Path(root)
     rows = {suite: read_csv(root / "docs" / "bench" / suite / "results.csv") for suite in SUITES}
+    rows["certificates"] = certificate_cost.read(root / "docs" / "bench" / "certificates" / "results.csv")
     changed = []
     for name in PAGES:
         path = root / name
