@@ -87,11 +87,11 @@ class BoxLaw(Puck):
 
 
 def own_switch_times(model, result) -> np.ndarray:
-    """The switch times located on the result's trajectory alone (qdframe.switches)."""
-    from qdframe.adaptive import iterate
+    """The switch times located on the result's trajectory alone (qdframe.certificates.switches)."""
+    from qdframe.solve.adaptive import iterate
     from qdframe.functional import Functional
-    from qdframe.grid import Grid, make_scheme
-    from qdframe.switches import switch_times
+    from qdframe.schemes.grid import Grid, make_scheme
+    from qdframe.certificates.switches import switch_times
 
     scheme = result.options["scheme"]
     functional = Functional(model, Grid.from_mesh(result.t[:: make_scheme(scheme).stages], scheme))

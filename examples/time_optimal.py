@@ -5,7 +5,7 @@
 
 A force |u| ≤ 2 against Coulomb friction 1, written as a set: v' ∈ [−2, 2] − Sgn(v).
 `free_T = True` makes T an unknown; the running cost 1 makes the cost ∫1 dt = T, so the
-solve minimizes T over the trajectories (qdframe/optimum.py: the penalty λ of T + λ·I is
+solve minimizes T over the trajectories (qdframe/solve/optimum.py: the penalty λ of T + λ·I is
 raised until the optimality gap and every pointwise check are within the target). The
 answer is bang-bang: full force forward until t = √1.5 (v' = 1), then full force back
 (v' = −3) until T* = (4/3)·√1.5 ≈ 1.633. Writes time_optimal.png.

@@ -6,8 +6,8 @@ The four interfaces: :class:`InclusionModel` (qdframe.model), :class:`DirectionS
 solve flows through them.
 """
 
-from .descent import DescentOptions
-from .solving import solve
+from .descent.loop import DescentOptions
+from .solve.solving import solve
 from .directions.base import Direction, DirectionSolver, MinNormDirection
 from .errors import BackendError, InputError, ModelOutputError, QdframeError
 from .line_searches.base import LineSearch

@@ -238,7 +238,7 @@ SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "eps
 
 
 def _solve(args: argparse.Namespace) -> int:
-    from .solving import solve
+    from .solve.solving import solve
     from .registry import load_model, make_direction
     from .directions.base import with_options
 
@@ -257,13 +257,13 @@ def _solve(args: argparse.Namespace) -> int:
             lookup(kind, name)
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
-        from .solving import ACCURACY_START_NODES, DEFAULT_ACCURACY
+        from .solve.solving import ACCURACY_START_NODES, DEFAULT_ACCURACY
 
         grid = (f"on {args.nodes} nodes" if args.nodes and not args.accuracy else
                 f"from {args.nodes or ACCURACY_START_NODES} points to accuracy {args.accuracy or DEFAULT_ACCURACY:g}")
         budget = args.max_iter
         if budget is None:
-            from .solving import DEFAULT_MAX_ITER
+            from .solve.solving import DEFAULT_MAX_ITER
 
             budget = direction.certified_max_iter if args.accuracy or not args.nodes else DEFAULT_MAX_ITER
         print(f"solving {model.name} {grid} with {args.direction}, budget {budget} iterations …",

@@ -23,7 +23,7 @@ group's `formulas(symbols, psi)`) returns its values, flattened in the order the
 returns them, as SymPy formulas of the given symbols for y (and ψ). Where every piece of a
 model has it, the event-driven integrator behind the replay certificate and the simulated
 start evaluates the model's whole Filippov system at one point in one compiled call, not
-one call per piece (:mod:`qdframe.model_system`). The set language and
+one call per piece (:mod:`qdframe.certificates.model_system`). The set language and
 :mod:`qdframe.ready_pieces` attach it; a hand-written piece without it still works.
 """
 
@@ -193,7 +193,7 @@ class Cost:
     The descent then minimizes the cost + λ·I (paper Example 7.1). Each group's
     `pieces(x)` returns values (N, m) and gradients (N, m, n). Where the cost's least
     value over the solutions is not 0 (a shortest time), λ is raised from `weight` until
-    the minimizer is a solution and an optimum within the target (:mod:`qdframe.optimum`).
+    the minimizer is a solution and an optimum within the target (:mod:`qdframe.solve.optimum`).
     """
 
     max_groups: tuple[ScalarPieces, ...] = ()

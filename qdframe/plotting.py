@@ -34,12 +34,15 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-if TYPE_CHECKING:  # types only: a result draws itself through this module (SolveResult.plot)
+if TYPE_CHECKING:  # types only
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from .model import InclusionModel
-    from .result import SolveResult
+
+# a qdframe.result.SolveResult, read by its attributes: a result draws itself through this
+# module (SolveResult.plot), which therefore does not import it
+SolveResult = Any
 
 VELOCITY_MODES = ("auto", "nodes", "means")
 POINT_WIDTH = 1e-12  # relative: an interval [lo, hi] no wider than this is drawn as a point
@@ -323,7 +326,7 @@ def _support(model: InclusionModel, block: Any, y: np.ndarray, zb: np.ndarray, m
     """c(F_b(y), ψ) at ψ = zb/|zb| (ψ = e_1 where z_b = 0), per node; with `means` the
     mean of the two end nodes' values per interval, which bounds <z̄_b, ψ> = |z̄_b|."""
     from .functional import Functional
-    from .grid import Grid
+    from .schemes.grid import Grid
 
     functional = Functional(model, Grid(float(model.T), 2))
     norm = np.linalg.norm(zb, axis=1, keepdims=True)

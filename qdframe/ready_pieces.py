@@ -13,7 +13,7 @@ for all nodes at once. The common ones, ready made:
 - :func:`repeated`: a constant row at every node (a constant gradient or piece value).
 
 Each carries the optional `formulas` hook (its values as formulas of y's symbols), with
-which :func:`qdframe.model_system.model_system` evaluates a whole model at one point in
+which :func:`qdframe.certificates.model_system.model_system` evaluates a whole model at one point in
 one compiled call. Models written with :mod:`qdframe.sets` need none of these: SymPy
 derives their gradients.
 """

@@ -65,10 +65,10 @@ class SolveResult:
     options: dict[str, Any]
     history: list[IterationRecord] = field(default_factory=list)
     control_names: tuple[str, ...] = ()  # the model's names of the columns of u
-    checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.certify
+    checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.descent.checks
     binding_check: str = ""  # the check with the largest value/tol
-    error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.estimates); None: none made
-    certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.estimates)
+    error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.certificates.estimates); None: none made
+    certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.certificates.estimates)
     accuracy: float | None = None  # the target: solved promises error_estimate ≤ accuracy·max(1, max|x|)
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
     parameters: dict[str, float] = field(default_factory=dict)  # the unknown parameters found (qdframe.unknowns)

@@ -33,7 +33,7 @@ from scipy.linalg import solve_banded
 from .errors import InputError, QdframeError
 from .functional import Functional
 from .functional.terms import _ball_projection_jacobian
-from .grid import Grid
+from .schemes.grid import Grid
 from .model import InclusionModel
 
 SCALE_FLOOR = 1e-12  # c ≤ 1e12 where a selection hardly moves its own switch

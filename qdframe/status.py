@@ -8,7 +8,7 @@ Status.SOLVED) and is written as that name in JSON.
 status           exit   meaning
 ===============  =====  ==================================================================
 solved           0      certified: x itself meets the boundary values, the inclusion and
-                        the surface pointwise (:mod:`qdframe.certify`) and its error
+                        the surface pointwise (:mod:`qdframe.descent.checks`) and its error
                         estimate is within the target (``accuracy``, default 1e-6 times
                         max(1, max|x|))
 uncertified      3      the discrete problem is solved pointwise, but the error is not

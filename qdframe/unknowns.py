@@ -11,8 +11,8 @@ interval (lo, hi) of its bounds: the identity without bounds, lo + e^σ or hi �
 one, lo + (hi − lo)/(1 + e^−σ) with both; T's bounds are (0, ∞) unless the model says
 otherwise (``T_bounds``). T = 0 with x constant meets every periodic condition: from a poor
 guess a periodic orbit can shrink towards it, which the first guess's sweep along the
-motion (:meth:`Unknowns._sweep`) avoids, ``T_bounds = (lo, hi)``, lo > 0, forbids and the
-verdict never calls solved (:func:`qdframe.certify.closed_by_tolerance`). For T > 0 the support function
+motion (:func:`qdframe.solve.start.swept_T`) avoids, ``T_bounds = (lo, hi)``, lo > 0, forbids and the
+verdict never calls solved (:func:`qdframe.descent.checks.closed_by_tolerance`). For T > 0 the support function
 of T·F is T·c(F, ψ): every max-group, min-group and sign amplitude of the model is scaled
 by T, a switch s(y) is not (Sgn(s) does not change), the cost integrand is scaled by T
 (∫ c dt = ∫ T·c ds) and the surface is not. The σ's start and end free; the boundary,
@@ -20,7 +20,7 @@ periodic and surface conditions of the model are those of X. So T and p enter th
 functional (paper (3.13)–(3.17)) through F alone, and every scheme, direction, start,
 error estimate and certificate applies unchanged.
 
-:func:`unwrap` maps the result back: t = s·T, x = X, z = X'/T, ``result.T`` and
+:func:`qdframe.solve.unwrap.unwrap` maps the result back: t = s·T, x = X, z = X'/T, ``result.T`` and
 ``result.parameters``. The bisection estimate compares the two solves in what the user is
 given (:meth:`Unknowns.observed`: x at the user's times t = s·T, each solve with its own
 T, then T and p), so it covers T, p and x at those times. A replay keeps the T found, so
@@ -33,23 +33,14 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import InputError
 from .model import BallSwitch, Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, SignTerm, Surface
-from .status import Status
 
-if TYPE_CHECKING:  # unwrap's types only: the results sit above the restated model
-    from .result import SolveResult
 
 T_NAME = "T"
-SWEEP_OCTAVES = 6  # a free T's first guess is sought in [T/2, T·2^k], k ≤ this, along the motion from x(0)
-SWEEP_POINTS = 4001
-SWEEP_TOL = 1e-9
-SWEEP_NEAR = 1e-3  # misses within this (relative to |x|) of the least count as near-best
-SHRUNK = 1e-3  # an unsolved period found below this fraction of its guess is named as drawn to T = 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -150,61 +141,7 @@ class Unknowns(InclusionModel):
         super().__init__(T=1.0 if self.scaled else model.T, x0=[*model.x0, *([np.nan] * len(extra))],
                          end_values=model.end_values, free_T=False, parameters=())
         self.constant_states = tuple(range(n, self.n_states))
-        self.T_guess = self.T0  # the user's; T0 may move to a better one (:meth:`_sweep`)
-        if self.scaled and np.all(np.isfinite(model.x0)) and not self.n_controls:
-            self.T0 = self._sweep()
-
-    def _sweep(self) -> float:
-        """A better first T where x(0) is given: the motion from x(0) with the guessed p,
-        integrated once over [T/2^k, T·2^k] ([T/2, T·2^k] for a period), and the T there that
-        misses the end and periodic conditions least (of the near-best, the nearest to the
-        guess); k = 1, 2, … up to SWEEP_OCTAVES until one misses by less than
-        SWEEP_NEAR·max(1, |x|). A guess of a
-        period a quarter off can sit where the misses are stationary (a corner of the relay's
-        orbit), and shooting from there does not move. The guess where the motion fails."""
-        if not self.end_indices and not self.periodic:
-            return self.T0
-        best = self.T0
-        for octave in range(1, SWEEP_OCTAVES + 1):
-            # an end condition: downwards too (a stop before the guess); a period: not towards T = 0,
-            # where a constant x is periodic
-            lowest = self.T0 / 2 if self.periodic else self.T0 / 2.0**octave
-            found = self._swept(lowest, self.T0 * 2.0**octave)
-            if found is None:
-                return best
-            best, near = found
-            if near:
-                break
-        return best
-
-    def _swept(self, lo: float, hi: float) -> tuple[float, bool] | None:
-        """(the best T in [lo, hi], whether it nearly meets the conditions), or None."""
-        from .errors import QdframeError
-        from .filippov import FilippovError, integrate
-        from .model_system import model_system
-        from .functional import Functional
-        from .grid import Grid
-
-        lo = max(lo, self.time_bound.lo * (1 + 1e-9) + 1e-300)
-        hi = min(hi, self.time_bound.hi * (1 - 1e-9))
-        start = [*self.inner.x0, *(bound.inverse(p) for bound, p in zip(self.bounds, self.inner.parameters)),
-                 self.time_bound.inverse(hi)]
-        try:
-            motion = integrate(model_system(Functional(self, Grid(1.0, 2, "implicit-euler"))), start, 1.0,
-                               SWEEP_TOL, SWEEP_TOL)
-        except (QdframeError, FilippovError, np.linalg.LinAlgError, ValueError, OverflowError):
-            return None
-        s = np.linspace(lo / hi, 1.0, SWEEP_POINTS)
-        X = motion(s)[:, : self.n]
-        end, periodic = list(self.end_indices), list(self.periodic)
-        misses = np.concatenate([X[:, end] - self.end_values, X[:, periodic] - self.inner.x0[periodic]], axis=1)
-        size = np.linalg.norm(misses, axis=1)
-        if not np.all(np.isfinite(size)):
-            return None
-        scale = SWEEP_NEAR * max(1.0, float(np.max(np.abs(X))))
-        near = size <= size.min() + scale
-        times = s * hi
-        return float(times[near][np.argmin(np.abs(np.log(times[near] / self.T0)))]), bool(size.min() <= scale)
+        self.T_guess = self.T0  # the user's; a solve may start from a better one (qdframe.solve.start.swept_T)
 
     # -- the columns of y = (x, σ_p, σ_T, u) and the model's y = (x, p, u)
     @property
@@ -381,48 +318,3 @@ class Unknowns(InclusionModel):
             name: float(bound.value(sigma[i])) for i, (name, bound) in enumerate(zip(self.inner.parameter_names, self.bounds))}
         T = float(self.time_bound.value(sigma[self.q])) if self.scaled else float(self.inner.T)
         return T, parameters
-
-
-def _solution_error(model: InclusionModel, t: np.ndarray, x: np.ndarray, T: float,
-                    parameters: Mapping[str, float]) -> float | None:
-    """max |x − x*| at the user's times, and |T − T*| and |p_i − p_i*| where the model knows
-    them (``exact_T``, ``exact_parameters``); None without a known solution."""
-    exact = model.exact_solution(t)
-    if exact is None:
-        return None
-    gaps = [float(np.max(np.abs(x - exact)))]
-    if model.free_T and model.exact_T is not None:
-        gaps.append(abs(T - model.exact_T))
-    gaps += [abs(parameters[name] - value) for name, value in model.exact_parameters.items()]
-    return max(gaps)
-
-
-def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
-    """The result in the model's own time and states (module docstring)."""
-    n = wrapper.n
-    T, parameters = wrapper.found(np.asarray(result.x, float))
-    factor = T if wrapper.scaled else 1.0
-    speed = float(np.max(np.abs(result.z[:, :n]))) if result.z.size else 0.0
-    estimate = result.error_estimate
-    if estimate is not None and wrapper.scaled and result.certificate != "bisection":
-        estimate *= 1.0 + speed  # a replay keeps T: what an error ΔT/T moves the points by (module docstring)
-    set_bounds = [None if b is None else {**b, "lower": b["lower"] / factor, "upper": b["upper"] / factor}
-                  for b in result.set_bounds if b is None or b["coordinate"] < n]
-    t, x = np.asarray(result.t, float) * factor, result.x[:, :n]
-    out = dataclasses.replace(
-        result, T=T, t=t, x=x, z=result.z[:, :n] / factor, state_names=tuple(wrapper.inner.state_names),
-        error_estimate=estimate, switch_times=np.asarray(result.switch_times, float) * factor, parameters=parameters,
-        set_bounds=set_bounds, solution_error=_solution_error(wrapper.inner, t, x, T, parameters),
-        options={**result.options, "free_T": wrapper.scaled, "T_guess": wrapper.T_guess, "T_start": wrapper.T0,
-                 "parameters_start": dict(zip(wrapper.inner.parameter_names, map(float, wrapper.inner.parameters)))},
-    )
-    if estimate is not None and out.status == Status.SOLVED and out.accuracy is not None:
-        bound = out.accuracy * max(1.0, float(np.max(np.abs(out.x))))
-        if estimate > bound:
-            out.status = Status.UNCERTIFIED
-            out.remarks = [*out.remarks, f"the scaled problem is certified, but with T free the error at the "
-                                         f"model's times, estimate {estimate:.1e}, exceeds the target {bound:.1e}"]
-    if wrapper.scaled and wrapper.periodic and out.status != Status.SOLVED and T < SHRUNK * wrapper.T_guess:
-        out.remarks = [*out.remarks, f"T shrank from the guess {wrapper.T_guess:g} to {T:.2g}, towards the trivial "
-                                     f"period T = 0 of a constant x: bound T from below (T_bounds) or guess it nearer"]
-    return out

@@ -9,7 +9,7 @@ import pytest
 import qdframe
 from qdframe.bench.accuracy import exact_models
 from qdframe.errors import InputError
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.sets import Interval, SetModel, Sgn
 
 EXACT = exact_models()  # every registered model with an exact solution, the plugin's too
@@ -65,7 +65,7 @@ def test_a_refined_mesh_keeps_every_point_and_refines_where_the_error_is():
     """adaptive.refine cuts each interval into equal parts: every old point stays (a
     solution carried there keeps its jumps on points), and the interval with the large
     local error gets the most parts."""
-    from qdframe.adaptive import refine
+    from qdframe.solve.adaptive import refine
 
     grid = Grid.from_mesh(np.array([0.0, 0.3, 0.5, 1.0]), "radau-iia")
     local = np.array([1e-8, 1e-4, 1e-8])

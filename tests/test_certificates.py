@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe import estimates
+from qdframe.certificates import estimates
 from qdframe.errors import InputError
-from qdframe.filippov import FilippovError, integrate
-from qdframe.model_system import model_system
+from qdframe.certificates.filippov import FilippovError, integrate
+from qdframe.certificates.model_system import model_system
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.models.exact_friction import BlockStopStick, block_stop_stick_motion
 from qdframe.sets import SetModel
-from qdframe.start import Starts
+from qdframe.solve.start import Starts
 
 SIMULATED = ("block-stop-stick", "block-breakaway", "slide-on-line", "slide-after-reaching", "two-surface-sliding",
              "stick-slip-oscillator", "coulomb-block", "sliding-mode", "orthotropic-puck", "isotropic-puck",

@@ -13,6 +13,7 @@ import pytest
 import qdframe
 from qdframe import registry
 from qdframe.cli import main
+from qdframe.solve import solving  # the module (qdframe.solve, the attribute, is the function)
 from qdframe.registry import make_direction
 from qdframe.directions.base import with_options
 from qdframe.errors import InputError, PluginCodeError, UnknownNameError
@@ -86,7 +87,7 @@ def _no_solve(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the solve started")
 
-    monkeypatch.setattr("qdframe.solving.solve", refuse)
+    monkeypatch.setattr(solving, "solve", refuse)
 
 
 # ---------------------------------------------------------------- item 1: a plugin's exceptions
@@ -220,14 +221,14 @@ def test_solve_exits_with_its_statuss_code(tmp_path, argv, status):
 
 @pytest.mark.parametrize("status", ["uncertified", "failed"])
 def test_uncertified_and_failed_have_their_codes(monkeypatch, status):
-    real = qdframe.solving.solve
+    real = solving.solve
 
     def ends(*args, **kwargs):
         result = real(*args, **kwargs)
         result.status = status
         return result
 
-    monkeypatch.setattr("qdframe.solving.solve", ends)
+    monkeypatch.setattr(solving, "solve", ends)
     assert main(["solve", "paper-7.1", "--nodes", "11", "--quiet"]) == EXIT_CODES[status] != 0
 
 
@@ -241,7 +242,7 @@ def test_an_unexpected_exception_is_one_line_exit_1(monkeypatch, capsys):
     def broken(*args, **kwargs):
         raise ZeroDivisionError("float division by zero")
 
-    monkeypatch.setattr("qdframe.solving.solve", broken)
+    monkeypatch.setattr(solving, "solve", broken)
     assert main(["solve", "paper-7.1"]) == EXIT_ERROR
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unexpected ZeroDivisionError: float division by zero" in err and "--debug" in err

@@ -31,7 +31,7 @@ def test_no_function_over_120_lines_and_no_class_over_300():
 
 
 def test_the_descent_module_stays_small():
-    assert len((PACKAGE / "descent.py").read_text().splitlines()) <= 400
+    assert len((PACKAGE / "descent" / "loop.py").read_text().splitlines()) <= 400
 
 
 def test_each_basename_once():

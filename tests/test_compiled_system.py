@@ -1,4 +1,4 @@
-"""A model's Filippov system compiled into one call (`formulas` hooks, qdframe.model_system)
+"""A model's Filippov system compiled into one call (`formulas` hooks, qdframe.certificates.model_system)
 gives the numbers of the pieces called one by one, on every registered model it covers, at
 random states, velocities to take the nearest point to and controls."""
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe import model_system as ms
+from qdframe.certificates import model_system as ms
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.model import MaxGroup, SetBlock, SignTerm
 from qdframe.models.exact_friction import BlockStopStick
 from qdframe.registry import names
@@ -89,5 +89,5 @@ def test_a_non_finite_value_is_named():
     functional = _functional(Blowing())
     assert ms._Compiled.build(functional) is not None
     system = ms.model_system(functional)
-    with pytest.raises(qdframe.filippov.FilippovError, match="non-finite at t = 0.1"):
+    with pytest.raises(qdframe.certificates.filippov.FilippovError, match="non-finite at t = 0.1"):
         system.fields(0.1, np.array([0.2, 0.7]))

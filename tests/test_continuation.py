@@ -6,9 +6,9 @@ import pytest
 
 import qdframe
 from qdframe import InclusionModel, SetBlock
-from qdframe.continuation import interpolate, iterate_view
+from qdframe.solve.continuation import interpolate, iterate_view
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 
 def steps_per_grid(result):
@@ -134,9 +134,9 @@ def test_a_finer_grid_from_a_solved_coarser_one_passes_its_kinks_with_full_steps
 def test_a_round_of_full_steps_not_kept_leaves_the_solver_as_it_was():
     """A watchdog round that finds no gain restores the solver's kept state (its damping, its
     KKT analysis), so that a descent that tried it goes on as if it had not."""
-    from qdframe.descent import DescentOptions
+    from qdframe.descent.loop import DescentOptions
     from qdframe.registry import make_direction
-    from qdframe.steps import watchdog
+    from qdframe.descent.steps import watchdog
 
     functional = Functional(qdframe.load_model("paper-7.3"), Grid(1.0, 11, "implicit-euler"))
     solver = make_direction("gauss-newton")

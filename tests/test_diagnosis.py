@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.diagnosis import condition_parts, unmet_conditions
+from qdframe.descent.diagnosis import condition_parts, unmet_conditions
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.sets import Interval, define_model, intersection
 
 NAN = float("nan")

@@ -87,13 +87,20 @@ def test_a_circle_is_found():
     assert _circles({"a": {"b"}, "b": {"a"}, "c": {"a"}}) == [{"a", "b"}]
 
 
-# the layers, bottom first: a module imports only from its own layer or those below it
-# (models below the solver: a built-in model imports the modeling layer alone)
+# the layers, bottom first: a module imports only from its own layer or those below it. Every
+# module is named (a new one that is not fails test_every_module_has_a_layer): the engine (the
+# model interface, the set language, the schemes, the functional, the directions and line
+# searches, the result) < the certificates (the true motion and the estimates) < the built-in
+# models (a reference may use the integrator) < one descent < the solve < the tools
 LAYERS = [
     ("foundation", ("qdframe.errors", "qdframe.argtypes", "qdframe.status", "qdframe.registry", "qdframe.progress")),
-    ("modeling", ("qdframe.model", "qdframe.ready_pieces", "qdframe.sets", "qdframe.quasidifferential", "qdframe.grid",
-                  "qdframe.schemes", "qdframe.filippov", "qdframe.complementarity", "qdframe.models")),
-    ("solver", ("qdframe.",)),  # every module not named in another layer
+    ("engine", ("qdframe.model", "qdframe.ready_pieces", "qdframe.sets", "qdframe.schemes", "qdframe.functional",
+                "qdframe.directions", "qdframe.line_searches", "qdframe.unknowns", "qdframe.result",
+                "qdframe.plotting")),
+    ("certificates", ("qdframe.certificates", "qdframe.simulate")),
+    ("models", ("qdframe.models",)),
+    ("descent", ("qdframe.descent",)),
+    ("solve", ("qdframe.solve",)),
     ("tools", ("qdframe.authoring", "qdframe.bench", "qdframe.cli", "qdframe.__main__")),
     ("package", ("qdframe",)),
 ]
@@ -115,3 +122,14 @@ def test_imports_point_down_the_layers():
     upward = sorted(f"{module} ({LAYERS[_layer(module)][0]}) imports {other} ({LAYERS[_layer(other)][0]})"
                     for module, targets in graph.items() for other in targets if _layer(other) > _layer(module))
     assert upward == []
+
+
+def test_every_module_has_a_layer():
+    """No module falls into a catch-all: each is named by its layer (or its folder)."""
+    unnamed = sorted(module for module in _modules() if module != "qdframe" and _layer(module) == len(LAYERS) - 1)
+    assert unnamed == []
+
+
+def test_an_upward_import_is_caught():
+    assert _layer("qdframe.certificates.filippov") < _layer("qdframe.descent.loop") < _layer("qdframe.solve.solving")
+    assert _layer("qdframe.functional.layout") < _layer("qdframe.certificates.estimates")

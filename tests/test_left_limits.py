@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.descent import DescentOptions
-from qdframe.steps import watchdog
+from qdframe.descent.loop import DescentOptions
+from qdframe.descent.steps import watchdog
 from qdframe.registry import make_direction
 from qdframe.directions.base import Direction, DirectionSolver
 from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
 from qdframe.errors import InputError
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.models.exact_friction import stick_slip_oscillator_motion
 
 

@@ -7,7 +7,7 @@ import qdframe
 from qdframe import simulate as simulate_module
 from qdframe.cli import main
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.ready_pieces import abs_sum
 from qdframe.model import InclusionModel, SetBlock, SignTerm, Surface
 from qdframe.simulate import simulate

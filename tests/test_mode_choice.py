@@ -17,9 +17,9 @@ import itertools
 import numpy as np
 import pytest
 
-from qdframe import filippov
-from qdframe.complementarity import box_lcp, labels
-from qdframe.filippov import MARGIN_TOL, Fields, FilippovSystem, choose_mode, integrate
+from qdframe.certificates import filippov
+from qdframe.certificates.complementarity import box_lcp, labels
+from qdframe.certificates.filippov import MARGIN_TOL, Fields, FilippovSystem, choose_mode, integrate
 
 
 def _enumerated(fields: Fields, x: np.ndarray, current=None, crossed=None, released=None) -> tuple[int, ...]:

@@ -11,7 +11,7 @@ import pytest
 import qdframe
 from qdframe import registry
 from qdframe.cli import main
-from qdframe.descent import REJECTED_LIMIT
+from qdframe.descent.loop import REJECTED_LIMIT
 from qdframe.errors import ModelOutputError
 from qdframe.status import EXIT_ERROR
 import numpy as np

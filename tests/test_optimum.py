@@ -1,5 +1,5 @@
 """Time-optimal problems (issue 32, item 3): a cost whose minimum over the solutions is not 0,
-solved by raising the penalty λ of ∫cost + λ·I (qdframe/optimum.py). Held against the exact
+solved by raising the penalty λ of ∫cost + λ·I (qdframe/solve/optimum.py). Held against the exact
 bang-bang answer of block-time-optimal, T* = (4/3)·√1.5."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe import optimum
-from qdframe.descent import DescentOptions, descend
+from qdframe.solve import optimum
+from qdframe.descent.loop import DescentOptions, descend
 from qdframe.directions.base import Direction, DirectionSolver
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.model import Cost
 from qdframe.models.paper import Paper71
 from qdframe.registry import make_line_search

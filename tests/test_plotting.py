@@ -15,7 +15,7 @@ import pytest  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from qdframe.solving import solve  # noqa: E402
+from qdframe.solve.solving import solve  # noqa: E402
 from qdframe.registry import load_model
 from qdframe.errors import InputError  # noqa: E402
 from qdframe.plotting import math_label, plot_result  # noqa: E402

@@ -14,7 +14,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 
-from qdframe.solving import solve  # noqa: E402
+from qdframe.solve.solving import solve  # noqa: E402
 from qdframe.plotting import math_label, plot_result  # noqa: E402
 
 

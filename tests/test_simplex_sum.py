@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from qdframe.quasidifferential import SimplexSum
+from qdframe.functional.quasidifferential import SimplexSum
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -7,10 +7,10 @@ import pytest
 
 import qdframe
 import qdframe.directions.gauss_newton
-from qdframe.continuation import grid_schedule
+from qdframe.solve.continuation import grid_schedule
 from qdframe.registry import make_direction
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 
 def first(result, predicate):
@@ -228,8 +228,8 @@ def test_the_starts_evaluation_is_timed_in_its_own_record(monkeypatch):
     # the terms are evaluated, 100 s for the start's and 1 s for every later one
     import types
 
-    import qdframe.descent
-    from qdframe.descent import DescentOptions, descend
+    import qdframe.descent.loop
+    from qdframe.descent.loop import DescentOptions, descend
     from qdframe.registry import make_line_search
 
     model = qdframe.load_model("paper-7.1")
@@ -242,7 +242,7 @@ def test_the_starts_evaluation_is_timed_in_its_own_record(monkeypatch):
         calls.append(1)
         return terms(xi)
 
-    monkeypatch.setattr(qdframe.descent, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
+    monkeypatch.setattr(qdframe.descent.loop, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
     monkeypatch.setattr(functional, "terms", slow_at_the_start)
     result = descend(functional, make_direction("gauss-newton"), make_line_search("armijo"),
                      DescentOptions(max_iter=3), None, start)

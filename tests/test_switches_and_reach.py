@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import qdframe
-from qdframe.diagnosis import _number
+from qdframe.descent.diagnosis import _number
 from qdframe.sets import SetModel, Sgn
-from qdframe.switches import merge_close
+from qdframe.certificates.switches import merge_close
 
 
 # ---------------------------------------------------------------- switch times

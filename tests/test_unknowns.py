@@ -242,7 +242,7 @@ def test_gauss_newton_keeps_a_constant_state_one_unknown():
     states are one unknown in the KKT systems (qdframe/directions/gauss_newton.py)."""
     from qdframe.registry import make_direction
     from qdframe.functional import Functional
-    from qdframe.grid import Grid
+    from qdframe.schemes.grid import Grid
 
     model = Unknowns(BlockFrictionCoefficient())
     assert model.constant_states == (2,)

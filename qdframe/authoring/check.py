@@ -241,7 +241,7 @@ class _SupportWidth:
 
     def __init__(self, model: InclusionModel, blocks) -> None:
         from ..functional import Functional
-        from ..grid import Grid
+        from ..schemes.grid import Grid
 
         self.model = model
         self.functional = Functional(model, Grid(float(model.T), 2), signs="band")  # evaluates sides at any points

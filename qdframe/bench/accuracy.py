@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..status import Status
-from ..solving import solve
+from ..solve.solving import solve
 from ..registry import load_model
 from ..errors import InputError
 from ..progress import bar

@@ -31,13 +31,13 @@ from typing import Callable
 
 import numpy as np
 
-from ..descent import DescentOptions, descend
+from ..descent.loop import DescentOptions, descend
 from ..registry import load_model, make_line_search
 from ..directions.base import MinNormDirection
 from ..directions.native import NativeDirection
 from ..errors import BackendError, QdframeError
 from ..functional import Functional
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..registry import available
 from . import problems
 

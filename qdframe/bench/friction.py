@@ -14,7 +14,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..solving import solve
+from ..solve.solving import solve
 from ..registry import load_model
 from ..progress import bar
 from . import problems

@@ -13,15 +13,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..status import Status
-from ..solving import solve
+from ..solve.solving import solve
 from ..registry import load_model
 from ..directions.minnorm import min_norm_point
 from ..directions.native import NativeDirection
 from ..functional import Functional
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..model import InclusionModel, MaxGroup, MinGroup, SetBlock
 from ..progress import bar
-from ..quasidifferential import Quasidifferential, SimplexSum
+from ..functional.quasidifferential import Quasidifferential, SimplexSum
 
 
 @dataclass(frozen=True)

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..functional import Functional
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..model import InclusionModel
 from ..models.bounded_input import SLIDING_A, SLIDING_B, CoulombRestToRest, SlidingModeTerminal
 from ..status import Status

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..filippov import FilippovSystem, FilippovTrajectory, integrate
+from ..certificates.filippov import FilippovSystem, FilippovTrajectory, integrate
 from . import replay_statements as replay
 from . import sign_forms as forms
 

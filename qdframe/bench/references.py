@@ -37,7 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..filippov import FilippovError, integrate
+from ..certificates.filippov import FilippovError, integrate
 from ..model import InclusionModel
 from . import problems
 
@@ -123,7 +123,7 @@ def judge(
                   + ", DOP853 rtol = atol = 1e-12 with event location")
         return Judgement(max(error, miss), error, miss, _switch_error(model, switch_times), EVENTS, None,
                          time.perf_counter() - start, recipe)
-    from ..projection_replay import replay
+    from ..certificates.projection_replay import replay
 
     runs = [(label, replay(model, t, x, z, u, continuation=None if label == "linear" else rule))
             for label, rule, _ in continuations(t, velocity)]
@@ -201,8 +201,8 @@ class SchemeRule:
     :data:`Continuation`, with `point(values)` for one time at a time in O(log N)."""
 
     def __init__(self, scheme, t: np.ndarray, mesh: np.ndarray) -> None:
-        from ..estimates import PointRule
-        from ..grid import Grid
+        from ..certificates.estimates import PointRule
+        from ..schemes.grid import Grid
 
         self.scheme, self.t, self.mesh = scheme, t, mesh
         self.grid, self.rule = Grid.from_mesh(t[mesh], scheme), PointRule

@@ -7,7 +7,7 @@ in the separable form
     x' ∈ g(t, x) − Σ_i a_i(t, x)·Sgn(c_i(x))·b_i,
 
 b_i a constant vector, a_i ≥ 0 a gain, c_i a scalar switching function, and integrated by
-the event-driven Filippov integrator (:func:`qdframe.filippov.integrate`: DOP853 between
+the event-driven Filippov integrator (:func:`qdframe.certificates.filippov.integrate`: DOP853 between
 events, rtol = atol = 1e-12, sliding by its equivalent control). Nothing of qdframe's model
 layer or solver is used: these statements are the benchmark's second reading of each model.
 
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..filippov import Fields, FilippovSystem
+from ..certificates.filippov import Fields, FilippovSystem
 
 Input = Callable[[float], np.ndarray]
 

@@ -35,12 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..solving import solve
+from ..solve.solving import solve
 from ..registry import make_direction, make_line_search
 from ..directions.base import Direction, DirectionSolver
 from ..errors import InputError, QdframeError, UnknownNameError
 from ..functional import Functional
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..model import InclusionModel
 from ..progress import bar
 from ..registry import available, lookup, make_peer

@@ -115,10 +115,10 @@ def best(measured: Sequence[Cell]) -> Cell:
 
 def measure(path: str, model_name: str, nodes: int, iterations: int = ITERATIONS) -> Cell:
     """One cell, in this process (run() calls it in a child)."""
-    from ..descent import DescentOptions, descend
+    from ..descent.loop import DescentOptions, descend
     from ..registry import load_model, make_direction, make_line_search
     from ..functional import Functional
-    from ..grid import Grid
+    from ..schemes.grid import Grid
 
     model = load_model(model_name)
     functional = Functional(model, Grid(model.T, nodes, model.default_scheme))

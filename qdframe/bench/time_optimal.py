@@ -67,7 +67,7 @@ def judged(solver: str, setting: str, status: Status, wall: float, T: float, t, 
 
 def run_qdframe(accuracy: float | None = None) -> Row:
     """``qdframe.solve("block-time-optimal")``, with ``accuracy=`` when one is given."""
-    from ..solving import solve
+    from ..solve.solving import solve
 
     options = {} if accuracy is None else {"accuracy": accuracy}
     start = time.perf_counter()
@@ -137,7 +137,7 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
         f"{', '.join(sorted(versions)) or 'nosnoc not run'}).", "",
         "The block p' = v, v' ∈ [−2, 2] − Sgn(v) from rest at 0 to rest at 1 in the shortest time: "
         f"T* = (4/3)·√1.5 = {exact:.10f}, full force forward until √1.5 = 0.75·T*, then full force back.", "",
-        "- qdframe: `qdframe.solve(\"block-time-optimal\")` (T free, cost ∫1 dt; `qdframe/optimum.py`) as a user "
+        "- qdframe: `qdframe.solve(\"block-time-optimal\")` (T free, cost ∫1 dt; `qdframe/solve/optimum.py`) as a user "
         "calls it, and with `accuracy=`.",
         "- nosnoc: Stewart's form with the control |u| ≤ 2 (modes (v, u − 1), (v, u + 1) on c = v), terminal "
         "constraint x(T) = (1, 0), cost T through a speed of time s on the numerical horizon [0, 2]: `global`, one s "

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..registry import load_model, make_direction
 from ..functional import Functional
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..unknowns import Unknowns, restated
 from . import problems
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from ..errors import InputError, close_names
-from ..quasidifferential import Quasidifferential
+from ..functional.quasidifferential import Quasidifferential
 
 if TYPE_CHECKING:
     from ..functional import Functional

@@ -13,7 +13,7 @@ the clip, so with the selections the step is a semismooth Newton step (LM-damped
 
 The cumulative integral Z = ∫_0^t z stays sparse: Z is an extra unknown per node tied
 to z by the scheme's rule Z_p = Z_{base(p)} + Σ_j A_pj z_j (the trapezoid rule,
-implicit Euler or Radau IIA: :class:`~qdframe.grid.Grid`), a banded equality
+implicit Euler or Radau IIA: :class:`~qdframe.schemes.grid.Grid`), a banded equality
 constraint, and x(t_0) = x0, Z_0 = 0 are constraints too. The step d minimizes
 
     λ/2·‖r + J d‖² + [cost model] + μ/2·Σ_k w_k ‖d_k‖²   subject to  E d = 0,

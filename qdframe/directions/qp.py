@@ -69,7 +69,7 @@ from .base import Direction, MinNormDirection, Rule, number_rule
 from .minnorm import min_norm_point, solve_on_support, validate_batch
 
 if TYPE_CHECKING:
-    from ..quasidifferential import Quasidifferential
+    from ..functional.quasidifferential import Quasidifferential
 
 _NODES: ContextVar[int | None] = ContextVar("qdframe_direction_nodes", default=None)
 """Number of nodes of the batch being solved (rows = nodes × vertices), for messages."""

@@ -31,7 +31,7 @@ its outside surface: it delegates to them):
 
 What depends on the scheme (the points, quadrature weights w_k, the cumulative integral
 Z = ∫_0^t z and its adjoint) comes from the grid, built from the scheme's own rule
-(:class:`~qdframe.grid.Grid`, :mod:`qdframe.schemes`).
+(:class:`~qdframe.schemes.grid.Grid`, :mod:`qdframe.schemes`).
 """
 
 from __future__ import annotations
@@ -41,9 +41,9 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import InputError, ModelOutputError
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..model import Cost, InclusionModel, SetBlock, Surface
-from ..quasidifferential import Quasidifferential
+from .quasidifferential import Quasidifferential
 from ..registry import plugin_code
 from .assembly import Quasidifferentials
 from .held import HeldChoices

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..grid import Grid
-from ..quasidifferential import Quasidifferential, SimplexSum
+from ..schemes.grid import Grid
+from .quasidifferential import Quasidifferential, SimplexSum
 from .layout import Layout
 from .pieces import Pieces
 from .terms import Values

@@ -13,7 +13,7 @@ Only a block whose set proper (without its sign terms) is a fixed set is held: c
 pieces, more than one in some max-group, no min-groups (a bounded input v' ∈ [−U, U] −
 F·Sgn(v)). Its choice at point p is its velocity less its sign terms' Filippov points,
 c_{p,b} = z_{p,b} − Σ sense·a(y_p)·λ_p, exactly what the replay certificate
-(:func:`qdframe.estimates.replay`) continues between the points, so the input the result
+(:func:`qdframe.certificates.estimates.replay`) continues between the points, so the input the result
 holds is the input its certificate drives. A set that moves with the state (v' ∈ −p +
 [−2, 2], x' ∈ [0.5·x, 1.5·x]) and the controls u keep each point's choice: held, such a
 choice is no longer the replay's input, and on the problems measured (docs/method.md) the
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelOutputError
-from ..grid import Grid
+from ..schemes.grid import Grid
 from .layout import Layout
 from .pieces import Pieces
 

@@ -13,7 +13,7 @@ the step repeated from there (alternating projections onto the farther set) unti
 point is in F to FEASIBLE: a point of F within a constant times dist(z, F) (the constant
 depends on the corner's angle), but not always the nearest one.
 
-Used by the replay of a trajectory (:mod:`qdframe.filippov`, the benchmark's projection
+Used by the replay of a trajectory (:mod:`qdframe.certificates.filippov`, the benchmark's projection
 replay) to continue a solver's choice of velocity as the true motion's.
 """
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ModelOutputError
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..model import InclusionModel, SetBlock
 from .psi import maximize_on_sphere, sphere_samples
 

@@ -1,7 +1,7 @@
 """The functional's values: φ, χ, ω, υ, σ, the cost, I and the objective; the ray.
 
 Paper (3.13), (3.14), (3.14'), (3.17), with the scheme's weights w_k and cumulative
-integral Z = ∫_0^t z (:class:`~qdframe.grid.Grid`, from the scheme's rule):
+integral Z = ∫_0^t z (:class:`~qdframe.schemes.grid.Grid`, from the scheme's rule):
 
     φ = ½ Σ_k w_k Σ_b h_b(x_k, z_k)²      χ = ½ Σ_{j∈J} (x0_j + Z_{N−1,j} − xT_j)²
     ω = ½ Σ_k w_k ‖e(x_k)‖²               υ = ½ Σ_k w_k ‖x_k − x0 − Z_k‖²
@@ -19,13 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..grid import Grid
+from ..schemes.grid import Grid
 from ..model import Cost, Surface
 from .held import HeldChoices
 from .layout import Layout
 from .pieces import Pieces, _reduce_last
 
-SATURATED = 1e-6  # |λ| ≥ 1 − this: a selection at an end of its set, off its surface (as qdframe.switches)
+SATURATED = 1e-6  # |λ| ≥ 1 − this: a selection at an end of its set, off its surface (as qdframe.certificates.switches)
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ block-friction-coefficient  the friction coefficient μ that stops a block throw
 block-time-optimal          the shortest time to move a Coulomb block (friction 1) by a
                             force |u| ≤ 2 from rest at 0 to rest at 1: T* = (4/3)·√1.5,
                             full force forward until t = √1.5, then full force back (a cost
-                            ∫1 dt = T, :mod:`qdframe.optimum`; guess T = 2)
+                            ∫1 dt = T, :mod:`qdframe.solve.optimum`; guess T = 2)
 ==========================  ===============================================================
 
 Each one's ``exact_solution(t)`` is the closed form at the true T and coefficients, at the

@@ -2,7 +2,7 @@
 
 They have no closed form. Each one's reference is its equations written out by hand here
 (not compiled from its sets) in the separable form x' ∈ g(x) + B·Sgn(s(x)) and integrated
-by the event-driven Filippov integrator (:func:`qdframe.filippov.integrate`: DOP853, rtol =
+by the event-driven Filippov integrator (:func:`qdframe.certificates.filippov.integrate`: DOP853, rtol =
 atol = 1e-12, stick and slide by the equivalent control): a second, independent reading
 of the model against which its solves are judged (``exact_solution``).
 
@@ -27,7 +27,7 @@ from collections.abc import Callable
 import numpy as np
 import sympy as sp
 
-from ..filippov import Fields, FilippovSystem, integrate
+from ..certificates.filippov import Fields, FilippovSystem, integrate
 from ..sets import SetModel, Sgn
 
 REFERENCE_TOL = 1e-12

@@ -8,7 +8,7 @@ selections' term, paper (3.13)–(3.17)) and the local integration rule
 
 where base(p) is the last *mesh* point before p and Z_p approximates ∫_0^{t_p} z.
 x_p − x0 − Z_p is then the consistency residual of υ. The trapezoid rule (the paper's),
-implicit Euler and Radau IIA are such rules; :class:`~qdframe.grid.Grid` turns any of
+implicit Euler and Radau IIA are such rules; :class:`~qdframe.schemes.grid.Grid` turns any of
 them into the cumulative integral, its adjoint and the sparse recursion used by
 gauss-newton. The mesh need not be uniform: adaptive solves (`accuracy=`) refine it
 where the error estimate is large and place mesh points on switch times. A new scheme

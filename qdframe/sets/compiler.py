@@ -81,7 +81,7 @@ class _Vectorized:
 
     def formulas(self, symbols: Sequence[sp.Symbol], psi: Sequence[Any] = ()) -> list[sp.Expr]:
         """The values as formulas of other `symbols` for y (and `psi`, symbols or numbers, for ψ):
-        the pieces' `formulas` hook (:mod:`qdframe.model_system` compiles a whole model from them)."""
+        the pieces' `formulas` hook (:mod:`qdframe.certificates.model_system` compiles a whole model from them)."""
         mapping = dict(zip(self.symbols, symbols)) | dict(zip(self.psi, psi))
         return [sp.sympify(e).xreplace(mapping) for e in self.exprs]
 

@@ -30,7 +30,7 @@ from qdframe.models.exact_friction import OSC_FRICTION as STICK_SLIP_FRICTION  #
 from qdframe.registry import load_model
 from qdframe.errors import InputError
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.model import InclusionModel, SetBlock, SignTerm
 from qdframe.ready_pieces import affine, coordinate
 

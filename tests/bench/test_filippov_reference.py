@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 
 import qdframe
 from qdframe.bench.problems import reference, statement
-from qdframe.filippov import FilippovError, FilippovSystem, integrate
+from qdframe.certificates.filippov import FilippovError, FilippovSystem, integrate
 from qdframe.models.exact_friction import FRICTION_MODELS
 from qdframe.models.paper_73 import Paper73
 

@@ -1,4 +1,4 @@
-"""The replay reference (qdframe.projection_replay): the nearest velocity against brute
+"""The replay reference (qdframe.certificates.projection_replay): the nearest velocity against brute
 force, and replays of exact, solved and perturbed trajectories."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import pytest
 from scipy.optimize import minimize
 
 import qdframe
-from qdframe.projection_replay import nearest_velocity, replay
+from qdframe.certificates.projection_replay import nearest_velocity, replay
 from qdframe.errors import InputError
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.registry import lookup
 
 

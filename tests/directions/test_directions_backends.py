@@ -23,7 +23,7 @@ from qdframe.directions.native import NativeDirection
 from qdframe.directions.qp import BackendFallbackWarning, QPDirection
 from qdframe.errors import BackendError, InputError
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 
 def _osqp():

@@ -7,7 +7,7 @@ import qdframe
 from qdframe.directions.gauss_newton import GaussNewton, Step
 from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 
 def dense_cumulative(nodes: int, h: float) -> np.ndarray:

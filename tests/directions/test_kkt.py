@@ -10,7 +10,7 @@ import qdframe
 from qdframe.directions.kkt import REUSE_ENTRIES, KKTSolver, solve_kkt
 from qdframe.directions.linearized_system import LinearizedSystem
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 
 def dense_kkt(hessian, constraints, gradient, rhs):

@@ -496,7 +496,7 @@ def test_a_direction_entry_at_rounding_on_a_kink_is_zero_and_the_direction_desce
     import numpy as np
 
     from qdframe.registry import make_direction
-    from qdframe.quasidifferential import Quasidifferential, SimplexSum
+    from qdframe.functional.quasidifferential import Quasidifferential, SimplexSum
 
     center = np.array([[1.77761619e-08, 4.32537339e-11, -3.08350642e-11, -1.39695075e-09]])
     generators = np.array([[[[1.0, 0.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0]]]])

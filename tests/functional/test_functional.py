@@ -11,7 +11,7 @@ import qdframe
 from qdframe import Cost, InclusionModel, MaxGroup, MinGroup, SetBlock, Surface
 from qdframe.errors import ModelOutputError
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 TINY_DELTA = 1e-12
 

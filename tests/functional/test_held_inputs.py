@@ -16,7 +16,7 @@ from qdframe.directions.sparse_rows import RowBlocks
 from qdframe.errors import InputError
 from qdframe.functional import Functional
 from qdframe.functional.held import held_pairs
-from qdframe.grid import Grid, make_scheme
+from qdframe.schemes.grid import Grid, make_scheme
 from qdframe.sets import Interval, SetModel, Sgn
 
 

@@ -15,7 +15,7 @@ import qdframe
 import qdframe.functional.pieces as functional_module  # where ψ* is searched
 from qdframe.functional import Functional
 from qdframe.functional.assembly import _delta_active
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.models.paper_sets import Paper72Sets
 from qdframe.functional.psi import (CHECK_STRIDE, CHUNK, EDGE, _angle, _tangent_basis, maximize_on_sphere,
                                     sphere_samples)

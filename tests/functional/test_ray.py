@@ -8,7 +8,7 @@ import pytest
 
 import qdframe
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.models.paper_sets import Paper71Sets, Paper72Sets, Paper73Sets
 from qdframe.sets import Interval, SetModel, Sgn
 

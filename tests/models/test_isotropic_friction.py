@@ -10,17 +10,17 @@ import pytest
 from sympy import cos, sin
 
 import qdframe
-from qdframe import filippov, model_system
+from qdframe.certificates import filippov, model_system
 from qdframe.ready_pieces import affine, ball_switch, coordinate
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.model import InclusionModel, SetBlock, SignTerm
 from qdframe.models.planar_friction import (ISO_BREAK, ISO_DIRECTION, ISO_FRICTION, ISO_RAMP, ISO_STOP,
                                             SLIDE3D_DIRECTION, SLIDE3D_FRICTION, SLIDE3D_PULL, SLIDE3D_STOP,
                                             IsotropicPuck, IsotropicSlide3D, sled_phase)
 from qdframe.sets import SetModel, Sgn
 from qdframe.simulate import simulate
-from qdframe.switches import _ball_regimes, _locate, polish
+from qdframe.certificates.switches import _ball_regimes, _locate, polish
 
 
 def _system(model):

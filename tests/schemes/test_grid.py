@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from qdframe.errors import InputError
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 
 
 def dense_cumulative_matrix(nodes: int, T: float) -> np.ndarray:

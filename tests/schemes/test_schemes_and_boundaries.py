@@ -10,7 +10,7 @@ import qdframe
 from qdframe.cli import main
 from qdframe.errors import InputError
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.sets import Interval, SetModel, Sgn
 from qdframe.registry import lookup
 
@@ -132,7 +132,7 @@ def test_band_and_exact_agree_off_the_switch():
 def test_the_schemes_velocity_is_the_derivative_its_rule_integrates(name):
     """Scheme.velocity is x' of the rule: integrating it over a mesh interval gives the rule's
     own increment x_{k+1} − x_k, for every scheme, on a nonuniform mesh."""
-    from qdframe.grid import Grid
+    from qdframe.schemes.grid import Grid
 
     scheme = lookup("schemes", name).obj()
     grid = Grid.from_mesh(np.array([0.0, 0.1, 0.35, 0.5, 1.0]), scheme)

@@ -6,7 +6,7 @@ import pytest
 
 import qdframe
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.models.paper_sets import Paper71Sets, Paper72Sets, Paper73Sets
 
 PAIRS = [(Paper71Sets, "paper-7.1"), (Paper72Sets, "paper-7.2"), (Paper73Sets, "paper-7.3")]

@@ -9,7 +9,7 @@ import pytest
 
 import qdframe
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.models.planar_friction import PUCK_ANGLE, PUCK_FRICTION, OrthotropicPuck
 from qdframe.sets import SetModel, Sgn
 

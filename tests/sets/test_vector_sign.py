@@ -12,7 +12,7 @@ import qdframe
 from qdframe.ready_pieces import affine, ball_switch, coordinate
 from qdframe.functional import Functional
 from qdframe.functional.pieces import _ball_band_kappa
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.model import BallSwitch, InclusionModel, SetBlock, SignTerm
 from qdframe.sets import Ball, Interval, Point, SetModel, SetStructureError, Sgn, compile_sets, define_model, hull, sqrt
 

@@ -10,7 +10,7 @@ import qdframe
 from qdframe.authoring import check_model
 from qdframe.cli import main
 from qdframe.functional import Functional
-from qdframe.grid import Grid
+from qdframe.schemes.grid import Grid
 from qdframe.sets import SetModel, Sgn
 from qdframe_mechanics.models import CoulombBlock
 

@@ -3,7 +3,7 @@
 Two certificates, each for the problems it can judge (:func:`certificate_for`):
 
 **bisection** — where the problem has one solution. The same problem is solved again on
-the bisected mesh (every interval halved: :meth:`~qdframe.grid.Grid.bisected`), from the
+the bisected mesh (every interval halved: :meth:`~qdframe.schemes.grid.Grid.bisected`), from the
 result interpolated, by gauss-newton, and the two are compared at the result's points in
 what the user is given (:meth:`~qdframe.model.InclusionModel.observed`: x, and with a free
 T or parameters the T and p found, at each solve's own t = s·T). With x_h and x_{h/2} the two discrete solutions and
@@ -18,14 +18,14 @@ coarse grids), plus what the two discrete solutions cannot see, the result's own
 The defects matter near the solver's tolerance: a trajectory that misses x_j(T) = xT_j by
 b is at least b from every solution there, and a velocity h outside F moves x by up to
 T·h over the horizon. The last term is for a switch pinned on a mesh point
-(:func:`qdframe.adaptive.settle_switches`) where the solution does not switch: both solves
+(:func:`qdframe.solve.adaptive.settle_switches`) where the solution does not switch: both solves
 share the pin, so their difference cannot show it; a selection held a time δ too long
 moves x by up to δ times the velocity's jump.
 
 **replay** — where the solutions form a set (a free input, a set-valued right-hand side)
 or the problem is an initial-value problem. The trajectory's own choices are replayed
 through the true dynamics: from its x(0), the Filippov motion x_ref of
-x' ∈ g + B·Sgn(s) (:func:`qdframe.model_system.model_system`), each set's velocity the point
+x' ∈ g + B·Sgn(s) (:func:`qdframe.certificates.model_system.model_system`), each set's velocity the point
 nearest to the trajectory's own choice, the controls the trajectory's u, all continued
 between the points by the scheme's own rule for x' (:meth:`~qdframe.schemes.Scheme.velocity`),
 integrated by DOP853 with event location (rtol = atol = 1e-11). x_ref is a true motion of
@@ -42,7 +42,7 @@ scale), a looser run would take the same steps and measure nothing: the uncertai
 2·steps·tol·max(1, |x|) (each accepted step's error is within atol + rtol·|x| by DOP853's
 own estimate). A model without sign terms
 has no events to locate: its motion x' = P_F(x, u)(w(t)) is found at every point at once by
-the collocation replay of :mod:`qdframe.projection_replay` (vectorized Newton–Picard sweeps,
+the collocation replay of :mod:`qdframe.certificates.projection_replay` (vectorized Newton–Picard sweeps,
 the uncertainty its change when the sub-steps double), not point by point.
 
 For an initial-value problem x_ref is the solution, so this is the true error itself.
@@ -52,7 +52,7 @@ Where the estimate is only a verdict (a fixed grid's), the replay stops at the f
 after which the distance it has seen passes the target: no value, that distance (`above`).
 
 Each estimate also gives the local error per mesh interval (how far x − x_other moves
-within it), which :func:`qdframe.adaptive.refine` equidistributes.
+within it), which :func:`qdframe.solve.adaptive.refine` equidistributes.
 """
 
 from __future__ import annotations
@@ -64,11 +64,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .functional import Functional
-from .functional.held import less_sign_points
-from .grid import Grid
-from .result import SolveResult
-from .status import Status
+from ..functional import Functional
+from ..functional.held import less_sign_points
+from ..schemes.grid import Grid
+from ..result import SolveResult
+from ..status import Status
 from .switches import switch_times
 
 BISECTION, REPLAY = "bisection", "replay"
@@ -276,7 +276,7 @@ class _Watch:
 
 
 def _collocation_replay(functional: Functional, result: SolveResult) -> Estimate:
-    """:func:`replay` for a model without sign terms, by :func:`qdframe.projection_replay.replay`:
+    """:func:`replay` for a model without sign terms, by :func:`qdframe.certificates.projection_replay.replay`:
     z and u continued by the scheme's rule, the uncertainty its own."""
     from .projection_replay import replay as collocate
 

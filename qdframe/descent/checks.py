@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .functional import Functional
+from ..functional import Functional
 
 # a descent with I ≤ tol but a pointwise check failing goes on while the worst check's ratio to
-# its tolerance shrinks by at least this factor in a window of iterations (qdframe.descent)
+# its tolerance shrinks by at least this factor in a window of iterations (qdframe.descent.loop)
 CERTIFY_SHRINK = 4.0
 # a periodic gap below this (relative to max(1, max|x|)) is round-off: x is at rest
 ROUND_OFF = 1e-13

@@ -4,18 +4,15 @@ step (:func:`watchdog`)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from . import certify
-from .certify import CERTIFY_SHRINK
-from .directions.base import DirectionSolver
-from .errors import BackendError, ModelOutputError
-from .functional import Functional
+from . import checks
+from .checks import CERTIFY_SHRINK
+from ..directions.base import DirectionSolver
+from ..errors import BackendError, ModelOutputError
+from ..functional import Functional
+from .options import DescentOptions
 
-if TYPE_CHECKING:
-    from .descent import DescentOptions
 
 START_ROUNDING = 1e-9  # a direction's move of a given x(t_0), relative to max(1, ‖G‖∞), that is rounding
 # where the descent would stop `stationary`, a solver whose steps are Newton steps (`full_steps`)
@@ -111,4 +108,4 @@ def worst_ratio(functional: Functional, xi: np.ndarray, objective: float, option
     (≤ 1: solved), else inf."""
     if not objective <= options.tol:
         return np.inf
-    return max(check.ratio for check in certify.checks(functional, xi, options.residual_tol))
+    return max(check.ratio for check in checks.checks(functional, xi, options.residual_tol))

@@ -8,11 +8,11 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from . import estimates
-from .errors import InputError
-from .functional import Functional
-from .grid import Grid, make_scheme
-from .result import SolveResult
+from ..certificates import estimates
+from ..errors import InputError
+from ..functional import Functional
+from ..schemes.grid import Grid, make_scheme
+from ..result import SolveResult
 
 COARSEST_NODES = 11  # step T/10, the paper's final step in Section 7
 BAND_START_ITERATIONS = 10  # at most this many iterations of the band start of an exact solve

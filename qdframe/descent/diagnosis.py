@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import QdframeError
-from .functional import DistanceSides, Functional
-from .model import SetBlock
+from ..errors import QdframeError
+from ..functional import DistanceSides, Functional
+from ..model import SetBlock
 
 SHARE = 0.1  # a condition is named when its part of I is at least this fraction of I
 MAX_CLAUSES = 3
@@ -101,7 +101,7 @@ def reach_bound(functional: Functional, xi: np.ndarray, j: int) -> str | None:
     target = float(model.end_values[list(functional.end).index(j)])
     margin, name = 1e-6 * max(1.0, abs(target)), model.state_names[j]
     if _deterministic(functional):
-        from .simulate import simulate
+        from ..simulate import simulate
 
         ends = [simulate(model, 0.0, model.T, model.x0, dt=model.T / steps).x[-1, j]
                 for steps in (SIMULATION_STEPS, 2 * SIMULATION_STEPS)]

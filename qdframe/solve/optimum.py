@@ -14,19 +14,19 @@ multiplier μ ≈ 2λ·r, and to first order
 on ``block-time-optimal`` the measured T* − T_λ is 2λ·I to three digits at λ = 1e5 … 1e9.)
 
 So the solve is the usual one with λ raised between rounds (:func:`raise_penalty`): after a
-round at λ, the gap 2λ·I and every pointwise check (:mod:`qdframe.certify`) fall like 1/λ,
+round at λ, the gap 2λ·I and every pointwise check (:mod:`qdframe.descent.checks`) fall like 1/λ,
 I like 1/λ², so λ is multiplied by RAISE_SAFETY times the largest of (the gap ÷
 GAP_FRACTION·target, the worst check ÷ its tolerance, √(I ÷ tol)), between MIN_RAISE and
 MAX_RAISE, and made at least 1/(GAP_FRACTION·target) (the gap is c/λ: c = 1 is the first
 guess), until a round is solved with the gap within GAP_FRACTION of the target (or λ would
 pass MAX_PENALTY: the result says so). A round starts from the last one's trajectory where
 that one is on the path x_λ → x* (its gap at most WARM_SHARE of its cost), else afresh from
-the straight line between the given ends (:func:`qdframe.start.straight_guess`): a small λ
+the straight line between the given ends (:func:`qdframe.solve.start.straight_guess`): a small λ
 can make the cost win outright (a shortest time at λ = 1 shrinks T towards 0 with the block
 at rest), and the path does not lead back from there; and from the model's start at rest a
 round can stop on a stuck phase (a block with |u| ≤ 1.5: I = 0.12).
 The descent ends such a round `solved` at a stationary point of 𝒥 + λ·I with I ≤ tol and
-every check passed (:func:`qdframe.descent._penalized_optimum`).
+every check passed (:func:`qdframe.descent.loop._penalized_optimum`).
 
 The error estimate of the result adds to the grid's estimate the penalty's part, the
 distance still to go as λ → ∞ extrapolated from the last two rounds (x_λ − x* is O(1/λ)):
@@ -43,14 +43,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .estimates import observed_difference
-from .model import InclusionModel
+from ..certificates.estimates import observed_difference
+from ..model import InclusionModel
 from .start import straight_guess
-from .status import Status
+from ..status import Status
 
 if TYPE_CHECKING:
-    from .functional import Functional
-    from .result import SolveResult
+    from ..functional import Functional
+    from ..result import SolveResult
 
 GAP_FRACTION = 0.1  # the optimality gap 2λ·I is kept within this share of the target
 RAISE_SAFETY = 10.0  # λ is raised this much past what the first-order rates say is enough

@@ -1,14 +1,14 @@
 """Refinement to a requested accuracy, and the certificate of a fixed grid.
 
 `accuracy` is a target for max_k |x(t_k) − x*(t_k)| relative to the trajectory's size: an
-error estimate (:mod:`qdframe.estimates`) at most accuracy·max(1, max|x|) certifies it.
+error estimate (:mod:`qdframe.certificates.estimates`) at most accuracy·max(1, max|x|) certifies it.
 
 **Refinement** (:func:`to_accuracy`). The first solve runs implicit Euler on a coarse mesh,
 which finds sticking and sliding robustly; where it cannot end `solved` (a two-point problem
 whose end condition a first-order scheme on a coarse mesh cannot meet exactly, as a block
 that stops and sticks with both ends given), the solve is repeated with Radau IIA on a
 finer uniform mesh. Then each round moves mesh points onto the located switch times
-(:mod:`qdframe.switches`) and re-solves until they settle, estimates, and lays out a new
+(:mod:`qdframe.certificates.switches`) and re-solves until they settle, estimates, and lays out a new
 mesh that equidistributes the local error (:func:`refine`), sized to meet the target,
 until the estimate meets it or the next mesh would pass `max_nodes`. An estimate always
 belongs to the trajectory returned with it. A run that cannot meet its target returns the
@@ -22,12 +22,12 @@ import time
 
 import numpy as np
 
-from .estimates import Estimate, Resolve, estimate, like
-from .functional import Functional
-from .grid import Grid, make_scheme
-from .result import SolveResult
-from .status import Status
-from .switches import switch_times
+from ..certificates.estimates import Estimate, Resolve, estimate, like
+from ..functional import Functional
+from ..schemes.grid import Grid, make_scheme
+from ..result import SolveResult
+from ..status import Status
+from ..certificates.switches import switch_times
 
 SWITCH_SETTLED = 1e-12  # relative to T: a switch time that moves less between rounds has settled
 SWITCH_ROUNDS = 6  # at most this many re-solves to settle the switch times on one mesh

@@ -1,7 +1,7 @@
 """`qdframe.solve`, the call a user makes: the model and its unknowns, the arguments checked,
 the grids (a continuation ladder, or a mesh refined to an accuracy), the start of each grid,
-the descent on each (:mod:`qdframe.descent`) and the verdict on the last
-(:mod:`qdframe.verdict`)."""
+the descent on each (:mod:`qdframe.descent.loop`) and the verdict on the last
+(:mod:`qdframe.solve.verdict`)."""
 
 from __future__ import annotations
 
@@ -12,21 +12,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import optimum, unknowns
+from . import optimum
+from .. import unknowns
 from .continuation import BAND_START_ITERATIONS, COARSE_EPS_FACTOR, grid_schedule, interpolate, iterate_view
-from .descent import EPS_FLOOR, DescentOptions, ProgressCallback, descend
-from .directions.base import DirectionSolver
-from .errors import InputError
-from .estimates import CERTIFICATES
-from .functional import Functional
-from .grid import Grid
-from .line_searches.base import LineSearch
-from .model import InclusionModel
-from .registry import load_model, make_direction, make_line_search
-from .result import IterationRecord, SolveResult
-from .schemes import Scheme
-from .start import LINE, MODEL, SIMULATED, LineStarts, Starts
-from .status import Status
+from ..descent.loop import EPS_FLOOR, DescentOptions, ProgressCallback, descend
+from ..directions.base import DirectionSolver
+from ..errors import InputError
+from ..certificates.estimates import CERTIFICATES
+from ..functional import Functional
+from ..schemes.grid import Grid
+from ..line_searches.base import LineSearch
+from ..model import InclusionModel
+from ..registry import load_model, make_direction, make_line_search
+from ..result import IterationRecord, SolveResult
+from ..schemes import Scheme
+from .unwrap import unwrap
+from .start import LINE, MODEL, SIMULATED, LineStarts, Starts, swept_T
+from ..status import Status
 from .verdict import certify_result
 
 DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
@@ -114,8 +116,8 @@ def solve(
     `mesh` gives the mesh times 0 = τ_0 < … < τ_K = T of the requested grid (nonuniform
     allowed; `nodes` is then stages·K + 1 and is ignored). A `solved` result carries
     `error_estimate`, an estimate of max_t |x(t) − x*(t)| from a second solve on the
-    bisected mesh (:mod:`qdframe.adaptive`; `estimate=False` skips it: None), and
-    `switch_times`, where a Filippov selection changes regime (:mod:`qdframe.switches`).
+    bisected mesh (:mod:`qdframe.solve.adaptive`; `estimate=False` skips it: None), and
+    `switch_times`, where a Filippov selection changes regime (:mod:`qdframe.certificates.switches`).
     `accuracy` asks for error_estimate ≤ accuracy: mesh points are moved onto the switch
     times and the mesh is refined where the estimate is large, up to `max_nodes` points;
     with `accuracy` and no `scheme` the scheme is radau-iia (order 3).
@@ -140,7 +142,7 @@ def solve(
     if run.first_start == MODEL and _stalled(plan, run):
         run = _from_the_line(model, plan, run, progress)
     rounds: list[optimum.Round] = []
-    if run.functional.cost is not None:  # a cost: λ raised until the minimizer is a solution (qdframe.optimum)
+    if run.functional.cost is not None:  # a cost: λ raised until the minimizer is a solution (qdframe.solve.optimum)
         plan, run, rounds = _raised_penalty(model, plan, run, planned, progress)
     functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options, progress,
                                         estimate, plan.target if plan.refining else None, plan.target, certificate,
@@ -156,9 +158,11 @@ def solve(
 def _with_unknowns(model: InclusionModel, given: dict, clock: float) -> SolveResult:
     """The solve of a model with T or parameters unknown: its wrapper on s = t/T, unwrapped."""
     wrapper = unknowns.Unknowns(model)
+    if wrapper.scaled and np.all(np.isfinite(model.x0)) and not wrapper.n_controls:  # a better first T
+        wrapper.T0 = swept_T(wrapper)
     if given["mesh"] is not None:
         given = {**given, "mesh": np.asarray(given["mesh"], dtype=float) / (model.T if model.free_T else 1.0)}
-    result = unknowns.unwrap(wrapper, solve(wrapper, **given))
+    result = unwrap(wrapper, solve(wrapper, **given))
     result.wall_time_s = time.perf_counter() - clock
     return result
 
@@ -179,7 +183,7 @@ def _free_instead(plan: "_Plan", functional: Functional, result: SolveResult, fr
 
 
 def _raised_penalty(model: InclusionModel, plan: _Plan, run: _Run, planned, progress) -> tuple[_Plan, _Run, list]:
-    """The rounds of ∫cost + λ·I with λ raised (:func:`qdframe.optimum.raise_penalty`), the
+    """The rounds of ∫cost + λ·I with λ raised (:func:`qdframe.solve.optimum.raise_penalty`), the
     last round's plan and run; its history is every round's, counted on."""
     last = {"plan": plan, "run": run}
     history = list(run.result.history)
@@ -365,7 +369,7 @@ def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
 
 def _stalled(plan: _Plan, run: _Run) -> bool:
     """Whether a Newton-type descent stopped at a local minimum of I (`stationary` with I > tol;
-    a cost's rounds restart on their own, :mod:`qdframe.optimum`)."""
+    a cost's rounds restart on their own, :mod:`qdframe.solve.optimum`)."""
     return (plan.solver.full_steps and run.functional.cost is None and run.result.status == Status.STATIONARY
             and run.result.I > plan.options.tol)
 

@@ -14,15 +14,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError
-from .schemes import Scheme
+from ..errors import InputError
+from . import Scheme
 
 
 def make_scheme(scheme: "str | Scheme") -> Scheme:
     """A scheme by registered name, or the instance itself."""
     if isinstance(scheme, Scheme):
         return scheme
-    from .registry import lookup
+    from ..registry import lookup
 
     return lookup("schemes", str(scheme)).obj()
 
@@ -32,7 +32,7 @@ class Grid:
     """`nodes` points on [0, T] laid out by `scheme` (default: the trapezoid rule), on a
     uniform mesh or on the given mesh times `mesh_times` (see :meth:`from_mesh`).
 
-    `switches` are the switch times the mesh was laid out for (:mod:`qdframe.adaptive` pins a
+    `switches` are the switch times the mesh was laid out for (:mod:`qdframe.solve.adaptive` pins a
     mesh point on each); `left_limits` (indices) are the mesh points among them where the
     scheme's rule integrates z over the interval before only (Radau IIA, implicit Euler; not
     the trapezoid rule, whose z at a mesh point serves both intervals): there a Filippov

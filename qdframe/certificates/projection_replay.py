@@ -55,11 +55,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solve_banded
 
-from .errors import InputError
-from .functional import Functional
-from .functional.nearest import nearest as _nearest, nearest_velocity  # noqa: F401  (nearest_velocity: re-exported)
-from .grid import Grid
-from .model import InclusionModel
+from ..errors import InputError
+from ..functional import Functional
+from ..functional.nearest import nearest as _nearest, nearest_velocity  # noqa: F401  (nearest_velocity: re-exported)
+from ..schemes.grid import Grid
+from ..model import InclusionModel
 
 
 
@@ -91,7 +91,7 @@ def replay(model: InclusionModel | str, t, x, z, u=None, *, min_substeps: int = 
     between the points t (right-continuous where it jumps); default: linear."""
     start = time.perf_counter()
     if isinstance(model, str):
-        from .registry import lookup
+        from ..registry import lookup
 
         model = lookup("models", model).obj()
     n, m = model.n_states, model.n_controls

@@ -1,6 +1,6 @@
 """A qdframe model's own Filippov system x' ∈ g + B·Sgn(s), read from its functional's
 pieces at one point at a time (:func:`model_system`), for the event-driven integrator of
-:mod:`qdframe.filippov`: the replay certificate, the simulated start, `qdframe simulate`."""
+:mod:`qdframe.certificates.filippov`: the replay certificate, the simulated start, `qdframe simulate`."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import sympy as sp
 
 from .filippov import Fields, FilippovError, FilippovSystem
-from .functional.nearest import nearest
+from ..functional.nearest import nearest
 
 Input = Callable[[float], np.ndarray]
 

@@ -8,18 +8,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import certify
+from . import checks
 from .diagnosis import unmet_conditions
-from .errors import ModelOutputError
-from .functional import Functional
-from .registry import plugin_code
-from .result import IterationRecord, SolveResult
-from .status import Status
+from ..errors import ModelOutputError
+from ..functional import Functional
+from ..registry import plugin_code
+from ..result import IterationRecord, SolveResult
+from .options import DescentOptions
+from ..status import Status
 
 if TYPE_CHECKING:
-    from .descent import DescentOptions
-    from .directions.base import DirectionSolver
-    from .line_searches.base import LineSearch
+    from ..directions.base import DirectionSolver
+    from ..line_searches.base import LineSearch
 
 
 def located(functional: Functional, xi: np.ndarray, error: ModelOutputError, where: str,
@@ -73,9 +73,9 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
         disagreement = residuals_disagree(functional, residuals, terms.I)
         if disagreement:
             status, reason = Status.FAILED, f"I = {terms.I:.2e} ≤ tol but {disagreement}: an internal inconsistency"
-    found = certify.checks(functional, xi, options.residual_tol)
+    found = checks.checks(functional, xi, options.residual_tol)
     if status != Status.SOLVED and terms.objective <= options.tol and terms.I <= options.tol:
-        remarks = [*remarks, f"I = {terms.I:.1e} ≤ tol but not pointwise: {certify.failures(found)}"]
+        remarks = [*remarks, f"I = {terms.I:.1e} ≤ tol but not pointwise: {checks.failures(found)}"]
     if status in (Status.STATIONARY, Status.MAX_ITER) and terms.I > options.tol:  # I bounded away from 0: name where it sits
         diagnosis = unmet_conditions(functional, xi, options.residual_tol)
         remarks = [*remarks, diagnosis] if diagnosis else remarks
@@ -128,5 +128,5 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
         },
         history=list(history),
         checks={check.name: {"value": check.value, "tol": check.tol} for check in found},
-        binding_check=certify.binding(found),
+        binding_check=checks.binding(found),
     )

@@ -6,7 +6,7 @@ A friction model that a user writes has, by default, a constant start x ≡ x0, 
 there semismooth Newton has to find every stick, slip and crossing itself, and on a
 pendulum with pivot friction or a long stick-slip horizon it does not. Where the model's
 sets are points apart from their sign terms, its true Filippov motion can be integrated
-(:mod:`qdframe.filippov`) and sampled on the grid; a model with controls u is moved by its
+(:mod:`qdframe.certificates.filippov`) and sampled on the grid; a model with controls u is moved by its
 first controls (``initial_controls``, u ≡ 0 by default), which the solve then changes:
 
 - x(0) wholly given: the motion from x0 (an initial-value problem: that motion is the
@@ -25,11 +25,12 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from .filippov import MOVING, FilippovError, FilippovTrajectory, integrate
-from .model_system import model_system
-from .errors import ModelOutputError, QdframeError
-from .functional import Functional
-from .grid import Grid
+from ..certificates.filippov import MOVING, FilippovError, FilippovTrajectory, integrate
+from ..certificates.model_system import model_system
+from ..errors import ModelOutputError, QdframeError
+from ..functional import Functional
+from ..schemes.grid import Grid
+from ..unknowns import Unknowns
 
 MODEL, SIMULATED, LINE = "model", "simulated", "straight line"
 SHOOTING_EVALUATIONS = 40  # motions integrated at most while shooting for free x(0) values
@@ -38,6 +39,10 @@ SIMULATION_SECONDS = 20.0  # a shooting search stops after this long, with what 
 TURN_DENSITY = 16 / np.pi  # a first mesh from the motion: intervals per radian its velocity turns …
 MIN_PER_PIECE = 4  # … and at least this many per piece of constant mode
 TURN_SAMPLES = 257  # points per piece where the turning is measured
+SWEEP_OCTAVES = 6  # a free T's first guess is sought in [T/2, T·2^k], k ≤ this, along the motion from x(0)
+SWEEP_POINTS = 4001
+SWEEP_TOL = 1e-9
+SWEEP_NEAR = 1e-3  # misses within this (relative to |x|) of the least count as near-best
 MODE_TIME_TOL = 1e-9  # relative to T: a point this near a mode change is sampled in the mode before it
 
 
@@ -222,9 +227,9 @@ class _OutOfTime(Exception):
 def sample(functional: Functional, motion: FilippovTrajectory) -> np.ndarray:
     """ξ on `functional`'s grid from a motion: x(t_k), z_k = its velocity g + B·λ in the mode
     of t_k, λ_k that mode's selections (the equivalent control while sliding). The model is
-    evaluated at all nodes at once (:func:`qdframe.model_system.model_system` one point at a
+    evaluated at all nodes at once (:func:`qdframe.certificates.model_system.model_system` one point at a
     time is only for the integrator); nodes are grouped by mode for the small solves."""
-    from .functional.nearest import nearest
+    from ..functional.nearest import nearest
 
     t = functional.grid.t
     x = motion(t)
@@ -282,7 +287,7 @@ def stepped(functional: Functional, x0: np.ndarray) -> np.ndarray:
     """ξ on an implicit-Euler grid from the simulator's steps on its very points
     (:func:`qdframe.simulate.simulate_on`): the discrete solution of an initial-value
     problem whose model leaves no choice, so that the solve has only to confirm it."""
-    from .simulate import simulate_on
+    from ..simulate import simulate_on
 
     run = simulate_on(functional.model, functional.grid.t, x0)
     z = np.concatenate([run.z[:1], run.z[:-1]])  # z_k of the step that ends at t_k (implicit Euler's)
@@ -290,3 +295,51 @@ def stepped(functional: Functional, x0: np.ndarray) -> np.ndarray:
     if functional.p and run.selections is not None:
         lam = np.concatenate([run.selections[:1], run.selections[:-1]])
     return functional.pack(run.x, z, None, lam)
+
+
+def swept_T(wrapper: Unknowns) -> float:
+    """A better first T of a model with T free where x(0) is given (the start of its solve):
+    the motion from x(0) with the guessed p,
+    integrated once over [T/2^k, T·2^k] ([T/2, T·2^k] for a period), and the T there that
+    misses the end and periodic conditions least (of the near-best, the nearest to the
+    guess); k = 1, 2, … up to SWEEP_OCTAVES until one misses by less than
+    SWEEP_NEAR·max(1, |x|). A guess of a
+    period a quarter off can sit where the misses are stationary (a corner of the relay's
+    orbit), and shooting from there does not move. The guess where the motion fails."""
+    if not wrapper.end_indices and not wrapper.periodic:
+        return wrapper.T0
+    best = wrapper.T0
+    for octave in range(1, SWEEP_OCTAVES + 1):
+        # an end condition: downwards too (a stop before the guess); a period: not towards T = 0,
+        # where a constant x is periodic
+        lowest = wrapper.T0 / 2 if wrapper.periodic else wrapper.T0 / 2.0**octave
+        found = _swept(wrapper, lowest, wrapper.T0 * 2.0**octave)
+        if found is None:
+            return best
+        best, near = found
+        if near:
+            break
+    return best
+
+def _swept(wrapper: Unknowns, lo: float, hi: float) -> tuple[float, bool] | None:
+    """(the best T in [lo, hi], whether it nearly meets the conditions), or None."""
+    lo = max(lo, wrapper.time_bound.lo * (1 + 1e-9) + 1e-300)
+    hi = min(hi, wrapper.time_bound.hi * (1 - 1e-9))
+    start = [*wrapper.inner.x0, *(bound.inverse(p) for bound, p in zip(wrapper.bounds, wrapper.inner.parameters)),
+             wrapper.time_bound.inverse(hi)]
+    try:
+        motion = integrate(model_system(Functional(wrapper, Grid(1.0, 2, "implicit-euler"))), start, 1.0,
+                           SWEEP_TOL, SWEEP_TOL)
+    except (QdframeError, FilippovError, np.linalg.LinAlgError, ValueError, OverflowError):
+        return None
+    s = np.linspace(lo / hi, 1.0, SWEEP_POINTS)
+    X = motion(s)[:, : wrapper.n]
+    end, periodic = list(wrapper.end_indices), list(wrapper.periodic)
+    misses = np.concatenate([X[:, end] - wrapper.end_values, X[:, periodic] - wrapper.inner.x0[periodic]], axis=1)
+    size = np.linalg.norm(misses, axis=1)
+    if not np.all(np.isfinite(size)):
+        return None
+    scale = SWEEP_NEAR * max(1.0, float(np.max(np.abs(X))))
+    near = size <= size.min() + scale
+    times = s * hi
+    return float(times[near][np.argmin(np.abs(np.log(times[near] / wrapper.T0)))]), bool(size.min() <= scale)

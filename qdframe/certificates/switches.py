@@ -17,7 +17,7 @@ A vector sign Sgn(s), s ∈ R^k (isotropic friction), is located the same way on
 
 Where the scheme is exact on the pieces (Radau IIA on quadratic motion, implicit Euler
 on the velocity of a block) one location is exact; otherwise the switch is re-located on
-the mesh that has a point there, and converges (see :mod:`qdframe.adaptive`).
+the mesh that has a point there, and converges (see :mod:`qdframe.solve.adaptive`).
 
 The times returned lie in [0, T] (an extrapolation past an end, such as a block at rest
 at t = 0 that starts to move, is the end itself). One switching function's times closer
@@ -33,7 +33,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .functional import Functional
+from ..functional import Functional
 
 SAME_TIME = 1e-9  # relative to T: two switching functions' switches this close are one time (they switch together)
 ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (s = 0 up to the solve's residuals)
@@ -67,7 +67,7 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
 
 def polish(times: np.ndarray, events: Sequence[float], mesh: np.ndarray) -> np.ndarray:
     """`times` located on the trajectory, each replaced by the nearest of `events` — the switch
-    times of the true motion, located by the event-driven integrator (:mod:`qdframe.filippov`)
+    times of the true motion, located by the event-driven integrator (:mod:`qdframe.certificates.filippov`)
     to its tolerance — that lies within the larger length of the mesh intervals holding the
     two; a time with no such event stays as located. For an initial-value problem whose
     trajectory is certified (its replay is the solution itself), this gives the solution's

@@ -29,9 +29,9 @@ selection vector λ ∈ B) has two regimes: MOVING, λ = s/|s|, and stuck (mode 
 along a line, breaks away where |λ_eq| reaches 1 and leaves in the quasi-static direction
 (:func:`quasi_static`), consistent with s/|s| to first order in the time since.
 
-:func:`qdframe.model_system.model_system` states a qdframe model in this form (its equations and sets as the
+:func:`qdframe.certificates.model_system.model_system` states a qdframe model in this form (its equations and sets as the
 drift, its sign terms as B and s, the sets' choice and the controls as inputs of time);
-the error certificate by replay (:mod:`qdframe.estimates`), the default start of a solve
+the error certificate by replay (:mod:`qdframe.certificates.estimates`), the default start of a solve
 and the benchmark's references use it.
 """
 
@@ -50,7 +50,7 @@ from scipy.integrate import OdeSolution, solve_ivp
 from scipy.sparse.csgraph import connected_components
 
 from .complementarity import box_lcp, labels
-from .errors import QdframeError
+from ..errors import QdframeError
 
 SURFACE_TOL = 1e-11  # |s_i| at most this (relative to max(1, |x|)): switch i is at its surface
 MARGIN_TOL = 1e-9  # a mode is consistent when every margin (λ units) is ≥ −MARGIN_TOL
@@ -326,7 +326,7 @@ def choose_mode(fields: Fields, x: np.ndarray, current: tuple[int, ...] | None =
     The switches at their surface fall into groups that do not move each other's s (no entry
     of ∇s·B between two groups): each group is decided on its own, so k independent blocks
     cost 3k margin checks, not 3^k. A group of at most ENUMERATED modes is enumerated; a
-    larger group of scalar sign terms is solved as a box LCP (:mod:`qdframe.complementarity`),
+    larger group of scalar sign terms is solved as a box LCP (:mod:`qdframe.certificates.complementarity`),
     and the switches whose margin there is within AMBIGUOUS of 0 are enumerated around it."""
     near = SURFACE_TOL * max(1.0, float(np.max(np.abs(x), initial=0.0)))
     ball_of = {a + j: (a, k) for a, k in balls for j in range(k)}

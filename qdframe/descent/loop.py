@@ -1,8 +1,8 @@
 """The δ-quasidifferential descent loop (paper Section 6): from a start ξ, a direction G
 per iteration (:mod:`qdframe.directions`), a step γ along it (:mod:`qdframe.line_searches`),
-until the objective and I are ≤ tol and every pointwise check passes (:mod:`qdframe.certify`)
+until the objective and I are ≤ tol and every pointwise check passes (:mod:`qdframe.descent.checks`)
 or the descent can go no further. The public call, with its grids and certificate, is
-:func:`qdframe.solving.solve`."""
+:func:`qdframe.solve.solving.solve`."""
 
 from __future__ import annotations
 
@@ -15,18 +15,17 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from . import certify
-from .certify import CERTIFY_SHRINK
-from .directions.base import DirectionSolver
-from .errors import BackendError, InputError, ModelOutputError
-from .functional import Functional
-from .line_searches.base import LineSearch
+from . import checks
+from .checks import CERTIFY_SHRINK
+from ..directions.base import DirectionSolver
+from ..errors import BackendError, InputError, ModelOutputError
+from ..functional import Functional
+from ..line_searches.base import LineSearch
 from .outcome import located, result_of
-from .result import IterationRecord, SolveResult
-from .status import Status
+from ..result import IterationRecord, SolveResult
+from ..status import Status
+from .options import EPS_FLOOR, DescentOptions, ProgressCallback  # noqa: F401  (the loop's options)
 from .steps import EAGER_ROUNDS, WATCHDOG_ROUNDS, WATCHDOG_STEPS, keep_start, watchdog
-
-ProgressCallback = Callable[[IterationRecord], None]
 
 # with I ≤ tol but a pointwise check failing, the descent goes on while the worst check's
 # ratio to its tolerance shrinks by at least CERTIFY_SHRINK every CERTIFY_WINDOW iterations;
@@ -38,7 +37,6 @@ ProgressCallback = Callable[[IterationRecord], None]
 CERTIFY_WINDOW = 40
 CERTIFY_WINDOW_FIRST_ORDER = 400  # the paper's min-norm directions converge linearly: a longer window
 EPS_SHRINK = 10.0  # ε and δ are divided by this where the iterate is ε-stationary but not solved
-EPS_FLOOR = 1e-12  # the smallest ε of a certified solve (solve's eps_floor=None where the mesh is refined)
 NEAR_ITERATE = 1e-6  # a trial that moves ξ by at most this (relative, max-norm) is next to the iterate
 # a line search that finds no decrease along a step whose slope is at most this × |objective| stops
 # at a stationary point for every purpose here (a cost's optimum is certified to ~1e-6 of it):
@@ -55,34 +53,6 @@ STALL_SLOPE = 1e-11
 REJECTED_LIMIT = 500
 
 
-@dataclass(frozen=True)
-class DescentOptions:
-    """The method's parameters; the paper's defaults δ = 1e-3, ε = 1e-2, γ̄ = 1 (Section 7).
-
-    eps_floor: where every node's deviation is ≤ ε but the iterate is not solved, ε and δ
-    shrink together by EPS_SHRINK and the descent goes on, down to ε = eps_floor (the
-    paper's method carried to convergence); eps_floor = eps keeps ε and δ fixed."""
-
-    max_iter: int = 500
-    tol: float = 1e-10
-    delta: float = 1e-3
-    eps: float = 1e-2
-    gamma_max: float = 1.0
-    residual_tol: float = 1e-8  # pointwise, scaled to the states: see :mod:`qdframe.certify`
-    eps_floor: float = 1e-12  # EPS_FLOOR
-
-    def __post_init__(self) -> None:
-        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
-            raise InputError("max_iter", "an integer ≥ 0", self.max_iter)
-        for field_name in ("tol", "delta", "eps", "gamma_max", "residual_tol", "eps_floor"):
-            value = getattr(self, field_name)
-            if not isinstance(value, (int, float, np.floating)) or not np.isfinite(value) or value <= 0:
-                raise InputError(field_name, "a positive finite number", value)
-        if self.eps_floor > self.eps:
-            raise InputError("eps_floor", f"a number ≤ eps = {self.eps:g} (eps_floor = eps: ε and δ fixed)",
-                             self.eps_floor)
-
-
 def descend(
     functional: Functional,
     solver: DirectionSolver,
@@ -94,7 +64,7 @@ def descend(
 ) -> SolveResult:
     """Run the descent from `start` (default: the model's initial guess); `near_solution`:
     the start is a coarser grid's solution, where a Newton step the line search cuts is
-    first tried whole (:data:`qdframe.steps.EAGER_ROUNDS`).
+    first tried whole (:data:`qdframe.descent.steps.EAGER_ROUNDS`).
 
     x(t_0) = x0 where given (a start's row 0 is set to it); a NaN/inf of the model at an
     iterate raises ModelOutputError with the state there (:func:`_located`), one at a
@@ -128,7 +98,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     rejected, rejected_label = 0, ""  # trial points where the model was NaN/inf, and the last piece named
     blocked: tuple[str, np.ndarray, ModelOutputError, str] | None = None  # where the model stops the descent
     uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
-    # full-step rounds left (:func:`qdframe.steps.watchdog`): where the descent stalls, and
+    # full-step rounds left (:func:`qdframe.descent.steps.watchdog`): where the descent stalls, and
     # (from a coarser grid's solution) where a line search cuts a Newton step
     rounds = {False: WATCHDOG_ROUNDS, True: EAGER_ROUNDS if near_solution else 0}
     eps, delta = options.eps, options.delta  # shrunk where the iterate is ε-stationary but not solved
@@ -159,8 +129,8 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
         while True:
             iteration = len(history)
             if terms.objective <= options.tol and terms.I <= options.tol:
-                found = certify.checks(functional, xi, options.residual_tol)
-                if not certify.failures(found):
+                found = checks.checks(functional, xi, options.residual_tol)
+                if not checks.failures(found):
                     status, message = Status.SOLVED, ""
                     break
                 uncertified.append(max(check.ratio for check in found))
@@ -233,7 +203,7 @@ def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch
     remarks = [] if status == Status.SOLVED else _remarks(options, eps, delta, rejected, rejected_label)
     result = result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
                        message, remarks, history, time.perf_counter() - clock)
-    result.options["stationary_point"] = optimal  # of the objective: a higher penalty can move it (qdframe.optimum)
+    result.options["stationary_point"] = optimal  # of the objective: a higher penalty can move it (qdframe.solve.optimum)
     return result
 
 
@@ -291,9 +261,9 @@ def _penalized_optimum(functional: Functional, xi: np.ndarray, terms, options: D
     """Whether a stationary point of ∫cost + λ·I (`optimal`) is a solution of the discrete problem: with a
     cost whose minimum is not 0 (a shortest time) the objective stays above tol, and its
     stationary point is the answer where I ≤ tol and every pointwise check passes (how close
-    it is to the cost's minimum over the solutions: :mod:`qdframe.optimum`)."""
+    it is to the cost's minimum over the solutions: :mod:`qdframe.solve.optimum`)."""
     return (functional.cost is not None and terms.I <= options.tol
-            and not certify.failures(certify.checks(functional, xi, options.residual_tol)))
+            and not checks.failures(checks.checks(functional, xi, options.residual_tol)))
 
 
 def _record(functional: Functional, iteration: int, xi: np.ndarray, terms, gamma: float, step: np.ndarray | None,

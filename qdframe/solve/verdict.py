@@ -1,7 +1,7 @@
 """The verdict on a solve: its switch times, its error estimate and its status against the
 accuracy target. Under `accuracy` the mesh is refined until the estimate meets it
-(:func:`qdframe.adaptive.to_accuracy`); on a fixed grid the estimate is made once
-(:func:`qdframe.adaptive.on_fixed_grid`). `solved` stays only where the estimate is within
+(:func:`qdframe.solve.adaptive.to_accuracy`); on a fixed grid the estimate is made once
+(:func:`qdframe.solve.adaptive.on_fixed_grid`). `solved` stays only where the estimate is within
 the target; a solved discrete problem without that is `uncertified` (:mod:`qdframe.status`)."""
 
 from __future__ import annotations
@@ -10,17 +10,19 @@ import dataclasses
 
 import numpy as np
 
-from . import adaptive, certify, switches
+from . import adaptive
+from ..descent import checks
+from ..certificates import switches
 from .continuation import interpolate
-from .descent import DescentOptions, ProgressCallback, descend
-from .directions.base import DirectionSolver
-from .functional import Functional
-from .line_searches.base import LineSearch
-from .registry import make_direction, make_line_search
-from .result import SolveResult
-from .schemes import Scheme
+from ..descent.loop import DescentOptions, ProgressCallback, descend
+from ..directions.base import DirectionSolver
+from ..functional import Functional
+from ..line_searches.base import LineSearch
+from ..registry import make_direction, make_line_search
+from ..result import SolveResult
+from ..schemes import Scheme
 from .start import MODEL, Starts
-from .status import Status
+from ..status import Status
 
 COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected grid
 
@@ -75,7 +77,7 @@ def certify_result(functional: Functional, result: SolveResult, solver: Directio
     note = outcome.note
     if solved:
         bound = adaptive.tolerance(target, result, functional)
-        unclosed = certify.closed_by_tolerance(functional, np.asarray(result.x, float))
+        unclosed = checks.closed_by_tolerance(functional, np.asarray(result.x, float))
         if unclosed:
             result.status = Status.UNCERTIFIED
             note = _join(note, f"{unclosed}: a longer T, or with T free a lower bound (T_bounds)")
