@@ -238,6 +238,7 @@ SOLVE_OPTIONS = ("nodes", "line_search", "max_iter", "tol", "delta", "eps", "eps
 
 
 def _solve(args: argparse.Namespace) -> int:
+    from .solve.plan import plan
     from .solve.solving import solve
     from .registry import load_model, make_direction
     from .directions.base import with_options
@@ -255,23 +256,15 @@ def _solve(args: argparse.Namespace) -> int:
     for kind, name in (("line_searches", args.line_search), ("schemes", args.scheme)):
         if name is not None:  # a misspelled name: before the model's start is built
             lookup(kind, name)
+    arguments = dict(direction=direction, estimate=not args.no_estimate, simulate_start=not args.no_simulate_start,
+                     **{name: getattr(args, name) for name in SOLVE_OPTIONS})
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
-        from .solve.solving import ACCURACY_START_NODES, DEFAULT_ACCURACY
-
-        grid = (f"on {args.nodes} nodes" if args.nodes and not args.accuracy else
-                f"from {args.nodes or ACCURACY_START_NODES} points to accuracy {args.accuracy or DEFAULT_ACCURACY:g}")
-        budget = args.max_iter
-        if budget is None:
-            from .solve.solving import DEFAULT_MAX_ITER
-
-            budget = direction.certified_max_iter if args.accuracy or not args.nodes else DEFAULT_MAX_ITER
-        print(f"solving {model.name} {grid} with {args.direction}, budget {budget} iterations …",
+        chosen = plan(model, **arguments)  # what the solve will run: its grid and budget
+        print(f"solving {model.name} {chosen.describe()} with {args.direction}, budget {chosen.budget} iterations …",
               end="", file=sys.stderr, flush=True)
     try:
-        result = solve(model, direction=direction, estimate=not args.no_estimate, simulate_start=not args.no_simulate_start,
-                       progress=_progress_printer(budget) if show_progress else None,
-                       **{name: getattr(args, name) for name in SOLVE_OPTIONS})
+        result = solve(model, progress=_progress_printer(chosen.budget) if show_progress else None, **arguments)
     finally:  # end the progress line, also before an error's line
         if show_progress:
             print(file=sys.stderr)

@@ -15,28 +15,20 @@ import numpy as np
 from . import optimum
 from .. import unknowns
 from .continuation import BAND_START_ITERATIONS, COARSE_EPS_FACTOR, grid_schedule, interpolate, iterate_view
-from ..descent.loop import EPS_FLOOR, DescentOptions, ProgressCallback, descend
+from ..descent.loop import DescentOptions, ProgressCallback, descend
 from ..directions.base import DirectionSolver
-from ..errors import InputError
-from ..certificates.estimates import CERTIFICATES
 from ..functional import Functional
-from ..schemes.grid import Grid
 from ..line_searches.base import LineSearch
 from ..model import InclusionModel
-from ..registry import load_model, make_direction, make_line_search
+from ..registry import load_model
 from ..result import IterationRecord, SolveResult
 from ..schemes import Scheme
-from .unwrap import unwrap
-from .start import LINE, MODEL, SIMULATED, LineStarts, Starts, swept_T
+from ..schemes.grid import Grid
 from ..status import Status
+from .plan import Plan, mesh_times, plan
+from .start import LINE, MODEL, SIMULATED, LineStarts, Starts, swept_T
+from .unwrap import unwrap
 from .verdict import certify_result
-
-DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
-DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
-DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`nodes` is required for one)
-ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
-ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
-BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
 
 
 def solve(
@@ -123,17 +115,25 @@ def solve(
     with `accuracy` and no `scheme` the scheme is radau-iia (order 3).
     """
     clock = time.perf_counter()
-    given = {name: value for name, value in locals().items() if name not in ("model", "free_T", "parameters", "clock")}
     if isinstance(model, str):
         model = load_model(model)
     if free_T is not None or parameters:  # a copy with T free or fixed, or other guesses of p
         model = unknowns.restated(model, free_T, parameters)
+    chosen = plan(model, nodes, direction, line_search, max_iter=max_iter, tol=tol, delta=delta, eps=eps,
+                  gamma_max=gamma_max, residual_tol=residual_tol, eps_floor=eps_floor, continuation=continuation,
+                  scheme=scheme, signs=signs, selection_scale=selection_scale, inputs=inputs, mesh=mesh,
+                  estimate=estimate, accuracy=accuracy, max_nodes=max_nodes, certificate=certificate,
+                  simulate_start=simulate_start)
+    return _solve(model, chosen, progress, clock)
+
+
+def _solve(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None, clock: float) -> SolveResult:
+    """The solve of `model` by `chosen`: the grids, the second chances, the verdict."""
     if model.has_unknowns:  # T or p found with x: the model on s = t/T with constant states
-        return _with_unknowns(model, given, clock)
-    def planned(model: InclusionModel, simulate: bool = simulate_start) -> _Plan:
-        return _plan(model, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol, eps_floor,
-                     continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy, max_nodes,
-                     certificate, simulate)
+        return _with_unknowns(model, chosen, progress, clock)
+
+    def planned(model: InclusionModel, simulate: bool = chosen.simulate_start) -> _Staged:
+        return _staged(model, dataclasses.replace(chosen, simulate_start=simulate))
 
     plan = planned(model)
     run = _run_grids(plan, progress)
@@ -145,29 +145,30 @@ def solve(
     if run.functional.cost is not None:  # a cost: λ raised until the minimizer is a solution (qdframe.solve.optimum)
         plan, run, rounds = _raised_penalty(model, plan, run, planned, progress)
     functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options, progress,
-                                        estimate, plan.target if plan.refining else None, plan.target, certificate,
-                                        max_nodes, plan.requested, plan.starts)
+                                        chosen.estimate, plan.target if plan.refining else None, plan.target,
+                                        chosen.certificate, chosen.max_nodes, plan.requested, plan.starts)
     if rounds:
         _penalty_verdict(functional, result, rounds, plan.target)
     result.iterations = result.history[-1].iteration
     result.wall_time_s = time.perf_counter() - clock
     result = _summarized(plan, run, functional, result)
-    return _free_instead(plan, functional, result, lambda: solve(model, **{**given, "inputs": "free"}), clock)
+    return _free_instead(plan, functional, result,
+                         lambda: _solve(model, dataclasses.replace(chosen, inputs="free"), progress, clock), clock)
 
 
-def _with_unknowns(model: InclusionModel, given: dict, clock: float) -> SolveResult:
+def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None, clock: float) -> SolveResult:
     """The solve of a model with T or parameters unknown: its wrapper on s = t/T, unwrapped."""
     wrapper = unknowns.Unknowns(model)
     if wrapper.scaled and np.all(np.isfinite(model.x0)) and not wrapper.n_controls:  # a better first T
         wrapper.T0 = swept_T(wrapper)
-    if given["mesh"] is not None:
-        given = {**given, "mesh": np.asarray(given["mesh"], dtype=float) / (model.T if model.free_T else 1.0)}
-    result = unwrap(wrapper, solve(wrapper, **given))
+    if chosen.mesh is not None and model.free_T:  # the mesh on s = t/T
+        chosen = dataclasses.replace(chosen, mesh=tuple(np.asarray(chosen.mesh) / model.T))
+    result = unwrap(wrapper, _solve(wrapper, chosen, progress, time.perf_counter()))
     result.wall_time_s = time.perf_counter() - clock
     return result
 
 
-def _free_instead(plan: "_Plan", functional: Functional, result: SolveResult, free: Callable[[], SolveResult],
+def _free_instead(plan: "_Staged", functional: Functional, result: SolveResult, free: Callable[[], SolveResult],
                   clock: float) -> SolveResult:
     """`result`, or where its last functional held the inputs and a Newton-type descent ended
     `stationary` there (no held choice meets the problem: one cannot follow a surface that
@@ -182,7 +183,7 @@ def _free_instead(plan: "_Plan", functional: Functional, result: SolveResult, fr
     return retried
 
 
-def _raised_penalty(model: InclusionModel, plan: _Plan, run: _Run, planned, progress) -> tuple[_Plan, _Run, list]:
+def _raised_penalty(model: InclusionModel, plan: _Staged, run: _Run, planned, progress) -> tuple[_Staged, _Run, list]:
     """The rounds of ∫cost + λ·I with λ raised (:func:`qdframe.solve.optimum.raise_penalty`), the
     last round's plan and run; its history is every round's, counted on."""
     last = {"plan": plan, "run": run}
@@ -225,61 +226,60 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
 
 
 @dataclass
-class _Plan:
-    """What a solve runs: its descent options, direction and line search, the grids in
-    turn (each a functional; the first one also with the band where signs are exact), the
-    starts on offer, and the target of its verdict."""
+class _Staged:
+    """A plan made concrete for one model: the grids in turn (each a functional; the first one
+    also with the band where signs are exact), and the starts on offer."""
 
-    options: DescentOptions
-    solver: DirectionSolver
-    search: LineSearch
+    plan: Plan
     grids: list[int]
     stages: list[Functional]
     starts: Starts
-    refining: bool  # the mesh is refined to the target (else a fixed grid)
-    target: float
-    requested: str | Scheme  # the scheme of the result (the first grids may bootstrap with implicit Euler)
-    signs: str
-    selection_scale: float
+
+    @property
+    def options(self) -> DescentOptions:
+        return self.plan.options
+
+    @property
+    def solver(self) -> DirectionSolver:
+        return self.plan.direction
+
+    @property
+    def search(self) -> LineSearch:
+        return self.plan.line_search
+
+    @property
+    def refining(self) -> bool:
+        return self.plan.refining
+
+    @property
+    def target(self) -> float:
+        return self.plan.target
+
+    @property
+    def requested(self) -> str | Scheme:
+        return self.plan.scheme
+
+    @property
+    def signs(self) -> str:
+        return self.plan.signs
+
+    @property
+    def selection_scale(self) -> float:
+        return self.plan.selection_scale
 
 
-def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, delta, eps, gamma_max, residual_tol,
-          eps_floor, continuation, scheme, signs, selection_scale, inputs, mesh, estimate, accuracy, max_nodes,
-          certificate, simulate_start) -> _Plan:
-    """The arguments of :func:`solve` checked and turned into the grids it runs."""
-    if accuracy is not None and not (isinstance(accuracy, (int, float)) and np.isfinite(accuracy) and accuracy > 0):
-        raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
-    if isinstance(max_nodes, bool) or not isinstance(max_nodes, (int, np.integer)) or max_nodes < 3:
-        raise InputError("max_nodes", "an integer ≥ 3", max_nodes)
-    if certificate not in (None, *CERTIFICATES):
-        raise InputError("certificate", " or ".join(f'"{name}"' for name in CERTIFICATES) + " (None: by the problem)",
-                         certificate)
-    refining = accuracy is not None or (nodes is None and mesh is None)  # else a fixed grid
-    if refining and not estimate:
-        raise InputError("estimate", "True when the mesh is refined to an accuracy (estimate=False needs nodes= or "
-                         "mesh= without accuracy=)", estimate)
-    given_nodes = nodes
-    if nodes is None:
-        nodes = ACCURACY_START_NODES if refining else DEFAULT_NODES
-    scheme = (ACCURACY_SCHEME if refining else model.default_scheme) if scheme is None else scheme
-    requested, scheme = scheme, (BOOTSTRAP_SCHEME if refining else scheme)
-    starts = Starts(model, simulate=simulate_start)
-    if refining and mesh is None and given_nodes is None:  # the first mesh: from the model's motion where it has one
-        mesh = starts.mesh(ACCURACY_START_NODES - 1)
+def _staged(model: InclusionModel, plan: Plan) -> _Staged:
+    """The grids of `plan` on `model`: its first mesh (from the model's motion where the plan
+    says so and the model has one), the continuation ladder below it, a functional each."""
+    starts = Starts(model, simulate=plan.simulate_start)
+    mesh, scheme, continuation = plan.mesh, plan.first_scheme, plan.continuation
+    if plan.from_motion:  # the first mesh: from the model's motion where it has one
+        mesh = starts.mesh(plan.nodes - 1)
         if mesh is not None:  # the motion has the switches: no implicit-Euler bootstrap nor coarser grids to find them
-            scheme = requested
+            scheme = plan.scheme
             continuation = "none" if continuation is None else continuation
-    final = Grid(model.T, nodes, scheme) if mesh is None else Grid.from_mesh(_mesh_times(mesh, model.T), scheme)
-    solver = make_direction(direction)
-    if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
-        max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
-    if eps_floor is None:  # a fixed grid keeps the paper's ε and δ
-        eps_floor = EPS_FLOOR if refining else eps
-    options = DescentOptions(
-        max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
-        residual_tol=residual_tol, eps_floor=eps_floor,
-    )
-    search = make_line_search(solver.default_line_search if line_search is None else line_search)
+    final = Grid(model.T, plan.nodes, scheme) if mesh is None else Grid.from_mesh(mesh_times(mesh, model.T), scheme)
+    solver = plan.direction
     if continuation is None and starts.motion() is not None:
         continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
     grids = grid_schedule(final.nodes, solver.default_continuation if continuation is None else continuation,
@@ -290,12 +290,12 @@ def _plan(model: InclusionModel, nodes, direction, line_search, max_iter, tol, d
     band = starts.motion() is None
     for count in grids:
         grid = final if count == final.nodes else Grid(model.T, count, scheme)
-        functional = Functional(model, grid, signs=signs, selection_scale=selection_scale, inputs=inputs)
+        functional = Functional(model, grid, signs=plan.signs, selection_scale=plan.selection_scale,
+                                inputs=plan.inputs)
         if not stages and functional.p and band:
             stages.append(Functional(model, functional.grid, signs="band"))
         stages.append(functional)
-    return _Plan(options, solver, search, grids, stages, starts, refining,
-                 DEFAULT_ACCURACY if accuracy is None else float(accuracy), requested, signs, selection_scale)
+    return _Staged(plan, grids, stages, starts)
 
 
 @dataclass
@@ -310,7 +310,7 @@ class _Run:
     first_start: str
 
 
-def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
+def _run_grids(plan: _Staged, progress: ProgressCallback | None) -> _Run:
     """One descent per grid, coarsest first, each from the lowest start on offer there.
 
     A coarser grid spends at most max(1, max_iter // (2G)) (its band start included) and
@@ -367,14 +367,14 @@ def _run_grids(plan: _Plan, progress: ProgressCallback | None) -> _Run:
     return _Run(functional, result, per_grid, shrunk_to, first_start)
 
 
-def _stalled(plan: _Plan, run: _Run) -> bool:
+def _stalled(plan: _Staged, run: _Run) -> bool:
     """Whether a Newton-type descent stopped at a local minimum of I (`stationary` with I > tol;
     a cost's rounds restart on their own, :mod:`qdframe.solve.optimum`)."""
     return (plan.solver.full_steps and run.functional.cost is None and run.result.status == Status.STATIONARY
             and run.result.I > plan.options.tol)
 
 
-def _from_the_model(plan: _Plan, run: _Run, again: _Plan, progress: ProgressCallback | None) -> tuple[_Plan, _Run]:
+def _from_the_model(plan: _Staged, run: _Run, again: _Staged, progress: ProgressCallback | None) -> tuple[_Staged, _Run]:
     """Where the simulated start stopped at a local minimum of I: the solve again as if the
     model had no motion (`again`: the model's own start, its grids; :func:`_again`). A model
     with controls is simulated under its first controls, whose motion can sit next to a
@@ -382,7 +382,7 @@ def _from_the_model(plan: _Plan, run: _Run, again: _Plan, progress: ProgressCall
     return _again(plan, run, again, MODEL, "the model's own start", progress)
 
 
-def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: ProgressCallback | None) -> _Run:
+def _from_the_line(model: InclusionModel, plan: _Staged, run: _Run, progress: ProgressCallback | None) -> _Run:
     """Where the grids from the model's start (x ≡ x0, at rest) stopped at a local minimum of
     I: the grids again from the straight line between the given ends (:func:`_again`).
     paper-7.3 at N = 11: the model's start stops at a local minimum, the line is solved."""
@@ -392,8 +392,8 @@ def _from_the_line(model: InclusionModel, plan: _Plan, run: _Run, progress: Prog
                   "the straight line between the given ends", progress)[1]
 
 
-def _again(plan: _Plan, run: _Run, again: _Plan, label: str, whence: str,
-           progress: ProgressCallback | None) -> tuple[_Plan, _Run]:
+def _again(plan: _Staged, run: _Run, again: _Staged, label: str, whence: str,
+           progress: ProgressCallback | None) -> tuple[_Staged, _Run]:
     """`again` (another start, perhaps other grids) with the budget `run` left: its plan and
     run (started from `label`) where it ends solved or lower than `run`, its history after
     `run`'s and the iterations on the grids both ran added; else `plan` and `run`, with a
@@ -406,7 +406,8 @@ def _again(plan: _Plan, run: _Run, again: _Plan, label: str, whence: str,
         record, iteration=record.iteration + used, time_s=record.time_s + elapsed)))
     # the budget left for these grids; the plan returned keeps the whole (the refinement after
     # it and the message count the iterations over the whole solve)
-    second = _run_grids(dataclasses.replace(again, options=dataclasses.replace(again.options, max_iter=left)), shown)
+    budget = dataclasses.replace(again.plan, options=dataclasses.replace(again.options, max_iter=left))
+    second = _run_grids(dataclasses.replace(again, plan=budget), shown)
     if not (second.result.status in (Status.SOLVED, Status.UNCERTIFIED) or second.result.objective < run.result.objective):
         run.result.remarks.append(f"from {whence} too, it ended {second.result.status}, no lower")
         return plan, run
@@ -435,7 +436,7 @@ def _lowest_start(starts: Starts, functional: Functional,
     return label, start, source
 
 
-def _not_worse_than_start(functional: Functional, plan: _Plan, result: SolveResult) -> SolveResult:
+def _not_worse_than_start(functional: Functional, plan: _Staged, result: SolveResult) -> SolveResult:
     """The result, or the model's start returned unchanged where it is lower than the
     iterate reached (status `stationary`, the message saying both)."""
     first = functional.initial_point()
@@ -450,7 +451,7 @@ def _not_worse_than_start(functional: Functional, plan: _Plan, result: SolveResu
     return result
 
 
-def _summarized(plan: _Plan, run: _Run, functional: Functional, result: SolveResult) -> SolveResult:
+def _summarized(plan: _Staged, run: _Run, functional: Functional, result: SolveResult) -> SolveResult:
     """The result's options over the whole solve (grids, iterations per grid, the smallest
     ε and δ reached, the start) and its message where it did not end `solved`."""
     options = plan.options
@@ -471,17 +472,3 @@ def _summarized(plan: _Plan, run: _Run, functional: Functional, result: SolveRes
     elif result.status != Status.SOLVED and len(grids) > 1:
         result.remarks.append(f"{result.iterations} iterations: {spent}")
     return result
-
-
-def _mesh_times(mesh: Sequence[float] | np.ndarray, T: float) -> np.ndarray:
-    """The user's mesh as an array checked against the model's horizon."""
-    try:
-        tau = np.asarray(mesh, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError("mesh", "increasing mesh times from 0 to T", mesh) from None
-    if tau.ndim != 1 or tau.size < 2 or tau[0] != 0.0 or not np.isclose(tau[-1], T, rtol=1e-14, atol=0.0):
-        raise InputError("mesh", f"increasing mesh times from 0 to T = {T:g}", f"shape {tau.shape}" if tau.ndim != 1
-                         else f"[{tau[0]:g}, …, {tau[-1]:g}]")
-    tau = tau.copy()
-    tau[-1] = T
-    return tau

@@ -1,0 +1,139 @@
+"""What a solve will run, decided from its arguments before any work: :func:`plan` and the
+frozen :class:`Plan` that :func:`qdframe.solve`, its verdict and the command line read.
+
+One rule decides a solve's kind: given `accuracy`, or neither `nodes` nor `mesh`, the mesh is
+refined until the error estimate meets the target (``refining``); otherwise the grid is fixed
+and its estimate is made once. The kind sets the other defaults:
+
+==================  =========================================  ==================================
+                    refining                                   fixed grid
+==================  =========================================  ==================================
+first points        `nodes`, else 21 (or the model's motion)   `nodes`, else 101
+scheme              `scheme`, else radau-iia (implicit Euler   `scheme`, else the model's
+                    first, to find the switches)               `default_scheme`
+budget (max_iter)   the direction's `certified_max_iter`       500
+ε floor             1e-12 (ε and δ shrink)                     ε (the paper's fixed ε and δ)
+==================  =========================================  ==================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..certificates.estimates import CERTIFICATES
+from ..descent.options import EPS_FLOOR, DescentOptions
+from ..directions.base import DirectionSolver
+from ..errors import InputError
+from ..line_searches.base import LineSearch
+from ..model import InclusionModel
+from ..registry import make_direction, make_line_search
+from ..schemes import Scheme
+
+DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
+DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
+DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`nodes` is required for one)
+ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
+ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
+BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A solve's decisions (the module's table), made by :func:`plan` from its arguments.
+
+    `nodes` and `mesh` are the first grid while refining, the grid when fixed; `from_motion`:
+    the first mesh comes from the model's simulated motion where it has one (refining with
+    neither given). `first_scheme` runs the first solves, `scheme` the result's. `continuation`
+    is the coarser grids' rule as given (None: the direction's own, or none where the model's
+    motion starts the requested grid)."""
+
+    refining: bool
+    target: float
+    nodes: int
+    mesh: tuple[float, ...] | None
+    from_motion: bool
+    scheme: str | Scheme
+    first_scheme: str | Scheme
+    options: DescentOptions
+    direction: DirectionSolver
+    line_search: LineSearch
+    continuation: Sequence[int] | str | None
+    estimate: bool
+    certificate: str | None
+    max_nodes: int
+    signs: str
+    selection_scale: float
+    inputs: str
+    simulate_start: bool
+
+    @property
+    def budget(self) -> int:
+        """The iterations of the whole solve (every grid, every second chance)."""
+        return self.options.max_iter
+
+    def describe(self) -> str:
+        """The plan in a few words: `on N nodes`, or `from N points to accuracy A`."""
+        if not self.refining:
+            return f"on {self.nodes} nodes"
+        return f"from {self.nodes} points to accuracy {self.target:g}"
+
+
+def plan(model: InclusionModel, nodes: int | None = None, direction: str | DirectionSolver = "gauss-newton",
+         line_search: str | LineSearch | None = None, *, max_iter: int | None = None, tol: float | None = None,
+         delta: float = 1e-3, eps: float = 1e-2, gamma_max: float = 1.0, residual_tol: float = 1e-8,
+         eps_floor: float | None = None, continuation: Sequence[int] | str | None = None,
+         scheme: str | Scheme | None = None, signs: str = "exact", selection_scale: float = 1.0,
+         inputs: str = "held", mesh: Sequence[float] | np.ndarray | None = None, estimate: bool = True,
+         accuracy: float | None = None, max_nodes: int = 100_001, certificate: str | None = None,
+         simulate_start: bool = True) -> Plan:
+    """The :class:`Plan` of ``qdframe.solve(model, …)`` with these arguments (the same names
+    and defaults), checked: an argument out of its range raises InputError naming it."""
+    if accuracy is not None and not (isinstance(accuracy, (int, float)) and np.isfinite(accuracy) and accuracy > 0):
+        raise InputError("accuracy", "a positive finite number (the target of the error estimate)", accuracy)
+    if isinstance(max_nodes, bool) or not isinstance(max_nodes, (int, np.integer)) or max_nodes < 3:
+        raise InputError("max_nodes", "an integer ≥ 3", max_nodes)
+    if certificate not in (None, *CERTIFICATES):
+        raise InputError("certificate", " or ".join(f'"{name}"' for name in CERTIFICATES) + " (None: by the problem)",
+                         certificate)
+    refining = accuracy is not None or (nodes is None and mesh is None)  # else a fixed grid
+    if refining and not estimate:
+        raise InputError("estimate", "True when the mesh is refined to an accuracy (estimate=False needs nodes= or "
+                         "mesh= without accuracy=)", estimate)
+    requested = (ACCURACY_SCHEME if refining else model.default_scheme) if scheme is None else scheme
+    solver = make_direction(direction)
+    if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
+        max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
+    if eps_floor is None:  # a fixed grid keeps the paper's ε and δ
+        eps_floor = EPS_FLOOR if refining else eps
+    options = DescentOptions(
+        max_iter=max_iter, tol=model.default_tol if tol is None else tol, delta=delta, eps=eps, gamma_max=gamma_max,
+        residual_tol=residual_tol, eps_floor=eps_floor,
+    )
+    search = make_line_search(solver.default_line_search if line_search is None else line_search)
+    return Plan(
+        refining=refining, target=DEFAULT_ACCURACY if accuracy is None else float(accuracy),
+        nodes=(ACCURACY_START_NODES if refining else DEFAULT_NODES) if nodes is None else nodes,
+        mesh=None if mesh is None else tuple(mesh_times(mesh, model.T)),
+        from_motion=refining and mesh is None and nodes is None, scheme=requested,
+        first_scheme=BOOTSTRAP_SCHEME if refining else requested, options=options, direction=solver,
+        line_search=search, continuation=continuation, estimate=estimate, certificate=certificate,
+        max_nodes=max_nodes, signs=signs, selection_scale=selection_scale, inputs=inputs,
+        simulate_start=simulate_start,
+    )
+
+
+def mesh_times(mesh: Sequence[float] | np.ndarray, T: float) -> np.ndarray:
+    """The user's mesh as an array checked against the model's horizon."""
+    try:
+        tau = np.asarray(mesh, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("mesh", "increasing mesh times from 0 to T", mesh) from None
+    if tau.ndim != 1 or tau.size < 2 or tau[0] != 0.0 or not np.isclose(tau[-1], T, rtol=1e-14, atol=0.0):
+        raise InputError("mesh", f"increasing mesh times from 0 to T = {T:g}", f"shape {tau.shape}" if tau.ndim != 1
+                         else f"[{tau[0]:g}, …, {tau[-1]:g}]")
+    tau = tau.copy()
+    tau[-1] = T
+    return tau
