@@ -63,10 +63,16 @@ NOT_RUN = {
     "qdframe bench scale --nodes 100001 --repeat 3": "a 9-minute measurement",
     # paper-7.2 alone at N = 100001, both paths, three processes each: 2 min 5 s (2026-11-25)
     "qdframe bench scale --models paper-7.2 --nodes 100001 --repeat 3": "a 2-minute measurement",
-    # paper-7.3 at N = 100001 from its motion: 3 iterations, uncertified (replay estimate
-    # 2.0e-5), 401 s on the 2-core machine (2026-11-27), most of it the replay; the same solve
-    # at N = 101 runs in tests/test_masses_and_signs.py
-    "qdframe solve paper-7.3 --nodes 100001": "a 7-minute solve",
+    # paper-7.3 at N = 100001 from its motion: 3 iterations, uncertified (its replay stops where
+    # it passes the target, at t = 0.0061), 21.5 s and 2.1 GB on the 2-core machine (2026-11-28:
+    # docs/bench/certificates); the same solve at N = 101 runs in tests/test_masses_and_signs.py
+    "qdframe solve paper-7.3 --nodes 100001": "a 22-second solve at 2 GB",
+    # every registered model's default call and fixed grids of 1e4 and 1e5 points, and 5 block
+    # counts, each in its own process: 25 minutes on the 2-core machine (2026-11-28); the docs'
+    # small variant runs here
+    "qdframe bench certificates": "a 25-minute measurement",
+    "qdframe bench certificates --blocks 2,5,10,20,40 --out docs/bench/certificates": "a 25-minute measurement, "
+                                                                                      "into the docs",
     # the same without the estimate: 3 iterations from 7.3's motion under u ≡ 0, 17.5 s
     # (2026-11-27); at 1001 and 10001 they run here
     "qdframe solve paper-7.3 --nodes 100001 --no-estimate": "a 20-second solve",

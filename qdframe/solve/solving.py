@@ -1,32 +1,31 @@
-"""`qdframe.solve`, the call a user makes: the model and its unknowns, the arguments checked,
-the grids (a continuation ladder, or a mesh refined to an accuracy), the start of each grid,
-the descent on each (:mod:`qdframe.descent.loop`) and the verdict on the last
-(:mod:`qdframe.solve.verdict`)."""
+"""`qdframe.solve`, the call a user makes: a plan (:mod:`qdframe.solve.plan`: the arguments
+checked, the one rule that sets the defaults), the grids and a descent on each
+(:mod:`qdframe.solve.grids`), the ladder of second chances (:mod:`qdframe.solve.ladder`),
+the verdict (:mod:`qdframe.solve.verdict`), and the result finished in one place."""
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from . import optimum
 from .. import unknowns
-from .continuation import BAND_START_ITERATIONS, COARSE_EPS_FACTOR, grid_schedule, interpolate, iterate_view
-from ..descent.loop import DescentOptions, ProgressCallback, descend
+from ..descent.loop import ProgressCallback
 from ..directions.base import DirectionSolver
 from ..functional import Functional
 from ..line_searches.base import LineSearch
 from ..model import InclusionModel
 from ..registry import load_model
-from ..result import IterationRecord, SolveResult
+from ..result import SolveResult
 from ..schemes import Scheme
-from ..schemes.grid import Grid
 from ..status import Status
-from .plan import Plan, mesh_times, plan
-from .start import LINE, MODEL, SIMULATED, LineStarts, Starts, swept_T
+from . import optimum
+from .grids import Run, Staged, run_grids, staged
+from .ladder import LADDER, Attempt, FreeInputs
+from .plan import Plan, plan
+from .start import swept_T
 from .unwrap import unwrap
 from .verdict import certify_result
 
@@ -128,32 +127,42 @@ def solve(
 
 
 def _solve(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None, clock: float) -> SolveResult:
-    """The solve of `model` by `chosen`: the grids, the second chances, the verdict."""
+    """The solve of `model` by `chosen`: the grids and the ladder of second chances, the
+    verdict, and after it the free inputs' second chance; the result finished in one place."""
     if model.has_unknowns:  # T or p found with x: the model on s = t/T with constant states
         return _with_unknowns(model, chosen, progress, clock)
-
-    def planned(model: InclusionModel, simulate: bool = chosen.simulate_start) -> _Staged:
-        return _staged(model, dataclasses.replace(chosen, simulate_start=simulate))
-
-    plan = planned(model)
-    run = _run_grids(plan, progress)
-    if run.first_start == SIMULATED and _stalled(plan, run):
-        plan, run = _from_the_model(plan, run, planned(model, simulate=False), progress)
-    if run.first_start == MODEL and _stalled(plan, run):
-        run = _from_the_line(model, plan, run, progress)
-    rounds: list[optimum.Round] = []
-    if run.functional.cost is not None:  # a cost: λ raised until the minimizer is a solution (qdframe.solve.optimum)
-        plan, run, rounds = _raised_penalty(model, plan, run, planned, progress)
-    functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options, progress,
-                                        chosen.estimate, plan.target if plan.refining else None, plan.target,
-                                        chosen.certificate, chosen.max_nodes, plan.requested, plan.starts)
-    if rounds:
-        _penalty_verdict(functional, result, rounds, plan.target)
-    result.iterations = result.history[-1].iteration
+    attempt, functional, result = _verdict(_attempt(model, chosen, progress))
+    retry = FreeInputs()
+    if retry.applies(attempt, functional, result):
+        held = result.status
+        attempt, functional, result = _verdict(_attempt(model, retry.plan(attempt), progress))
+        result.remarks.append(retry.remark.format(status=held))
     result.wall_time_s = time.perf_counter() - clock
-    result = _summarized(plan, run, functional, result)
-    return _free_instead(plan, functional, result,
-                         lambda: _solve(model, dataclasses.replace(chosen, inputs="free"), progress, clock), clock)
+    return result
+
+
+def _attempt(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None) -> Attempt:
+    """The grids of `chosen` on `model`, then each stage of the ladder that applies, in turn."""
+    plan = staged(model, chosen)
+    attempt = Attempt(model, chosen, plan, run_grids(plan, progress), progress)
+    for stage in LADDER:
+        if stage.applies(attempt):
+            attempt = stage.apply(attempt)
+    return attempt
+
+
+def _verdict(attempt: Attempt) -> tuple[Attempt, Functional, SolveResult]:
+    """The attempt's last trajectory certified (:func:`qdframe.solve.verdict.certify_result`),
+    the cost's rounds counted in, summarized."""
+    plan, run = attempt.staged, attempt.run
+    chosen = attempt.plan
+    functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options,
+                                        attempt.progress, chosen.estimate, plan.target if plan.refining else None,
+                                        plan.target, chosen.certificate, chosen.max_nodes, plan.requested, plan.starts)
+    if attempt.rounds:
+        _penalty_verdict(functional, result, attempt.rounds, plan.target)
+    result.iterations = result.history[-1].iteration
+    return attempt, functional, _summarized(plan, run, functional, result)
 
 
 def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None, clock: float) -> SolveResult:
@@ -166,43 +175,6 @@ def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallba
     result = unwrap(wrapper, _solve(wrapper, chosen, progress, time.perf_counter()))
     result.wall_time_s = time.perf_counter() - clock
     return result
-
-
-def _free_instead(plan: "_Staged", functional: Functional, result: SolveResult, free: Callable[[], SolveResult],
-                  clock: float) -> SolveResult:
-    """`result`, or where its last functional held the inputs and a Newton-type descent ended
-    `stationary` there (no held choice meets the problem: one cannot follow a surface that
-    moves the state within an interval), the solve with each point's own choice (`free()`),
-    saying so. (A first-order method's stationary or max_iter says nothing of the held choice.)"""
-    if functional.held is None or result.status != Status.STATIONARY or not plan.solver.full_steps:
-        return result
-    retried = free()
-    retried.remarks.append(f"with the inputs held the solve ended {result.status}: each point chose its own "
-                           f"(inputs=\"free\")")
-    retried.wall_time_s = time.perf_counter() - clock
-    return retried
-
-
-def _raised_penalty(model: InclusionModel, plan: _Staged, run: _Run, planned, progress) -> tuple[_Staged, _Run, list]:
-    """The rounds of ∫cost + λ·I with λ raised (:func:`qdframe.solve.optimum.raise_penalty`), the
-    last round's plan and run; its history is every round's, counted on."""
-    last = {"plan": plan, "run": run}
-    history = list(run.result.history)
-
-    def rerun(model: InclusionModel) -> tuple[Functional, SolveResult]:
-        last["plan"] = planned(model)
-        last["run"] = _run_grids(last["plan"], progress)
-        used, elapsed = history[-1].iteration, history[-1].time_s
-        history.extend(dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
-                       for record in last["run"].result.history)
-        return last["run"].functional, last["run"].result
-
-    def target(result: SolveResult) -> float:
-        return plan.target * model.accuracy_scale(result.x)
-
-    rounds = optimum.raise_penalty(model, (run.functional, run.result), target, plan.options.tol, rerun)
-    last["run"].result.history = history
-    return last["plan"], last["run"], rounds
 
 
 def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, target: float) -> None:
@@ -225,233 +197,7 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
                                   f"λ = {weight:.0e}), penalty's part of the estimate {extra:.1e}")
 
 
-@dataclass
-class _Staged:
-    """A plan made concrete for one model: the grids in turn (each a functional; the first one
-    also with the band where signs are exact), and the starts on offer."""
-
-    plan: Plan
-    grids: list[int]
-    stages: list[Functional]
-    starts: Starts
-
-    @property
-    def options(self) -> DescentOptions:
-        return self.plan.options
-
-    @property
-    def solver(self) -> DirectionSolver:
-        return self.plan.direction
-
-    @property
-    def search(self) -> LineSearch:
-        return self.plan.line_search
-
-    @property
-    def refining(self) -> bool:
-        return self.plan.refining
-
-    @property
-    def target(self) -> float:
-        return self.plan.target
-
-    @property
-    def requested(self) -> str | Scheme:
-        return self.plan.scheme
-
-    @property
-    def signs(self) -> str:
-        return self.plan.signs
-
-    @property
-    def selection_scale(self) -> float:
-        return self.plan.selection_scale
-
-
-def _staged(model: InclusionModel, plan: Plan) -> _Staged:
-    """The grids of `plan` on `model`: its first mesh (from the model's motion where the plan
-    says so and the model has one), the continuation ladder below it, a functional each."""
-    starts = Starts(model, simulate=plan.simulate_start)
-    mesh, scheme, continuation = plan.mesh, plan.first_scheme, plan.continuation
-    if plan.from_motion:  # the first mesh: from the model's motion where it has one
-        mesh = starts.mesh(plan.nodes - 1)
-        if mesh is not None:  # the motion has the switches: no implicit-Euler bootstrap nor coarser grids to find them
-            scheme = plan.scheme
-            continuation = "none" if continuation is None else continuation
-    final = Grid(model.T, plan.nodes, scheme) if mesh is None else Grid.from_mesh(mesh_times(mesh, model.T), scheme)
-    solver = plan.direction
-    if continuation is None and starts.motion() is not None:
-        continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
-    grids = grid_schedule(final.nodes, solver.default_continuation if continuation is None else continuation,
-                          solver.coarsest_nodes, solver.ladder_steps)
-    # the functionals solved in turn: each grid, the first one also with the band if exact and
-    # there is no motion to start from (its selections are the motion's modes, the band's are not)
-    stages = []
-    band = starts.motion() is None
-    for count in grids:
-        grid = final if count == final.nodes else Grid(model.T, count, scheme)
-        functional = Functional(model, grid, signs=plan.signs, selection_scale=plan.selection_scale,
-                                inputs=plan.inputs)
-        if not stages and functional.p and band:
-            stages.append(Functional(model, functional.grid, signs="band"))
-        stages.append(functional)
-    return _Staged(plan, grids, stages, starts)
-
-
-@dataclass
-class _Run:
-    """The descents on a plan's grids: the last functional and result, the history over all
-    grids, the iterations per grid, the (ε, δ) each descent ended with, the first start."""
-
-    functional: Functional
-    result: SolveResult
-    per_grid: list[int]
-    shrunk_to: list[tuple[float, float]]
-    first_start: str
-
-
-def _run_grids(plan: _Staged, progress: ProgressCallback | None) -> _Run:
-    """One descent per grid, coarsest first, each from the lowest start on offer there.
-
-    A coarser grid spends at most max(1, max_iter // (2G)) (its band start included) and
-    leaves one iteration to each later grid; a stage before the last stops on 10·ε. The
-    returned iterate is never worse than the model's start."""
-    options, grids = plan.options, plan.grids
-    history, result = [], None
-    shrunk_to = []  # (ε, δ) each descent of the user's direction ended with (the paper's: shrunk, perhaps)
-    first_start = MODEL
-    earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
-    per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
-    share = max(1, options.max_iter // (2 * len(grids)))  # a coarse grid's cap: the requested grid keeps ≥ half
-    for functional in plan.stages:
-        count = functional.grid.nodes
-        index = grids.index(count)
-        last = functional is plan.stages[-1]
-        later = len(grids) - 1 - index
-        budget = options.max_iter - sum(per_grid) - later  # one iteration kept for each later grid
-        if later:
-            budget = min(budget, share - per_grid[index])
-        if functional.signs != plan.signs:  # the band only starts the exact solve: a short run, one iteration left
-            budget = min(budget - 1, BAND_START_ITERATIONS)
-        if budget <= 0 and not last:  # no iteration here: no result from this grid
-            continue
-        label, start, source = _lowest_start(plan.starts, functional, earlier)
-        from_stage = source is not None
-        # a coarser grid's solution: its switches are a few nodes off here, which full steps pass
-        near = getattr(source, "status", None) == Status.SOLVED and source.nodes < count
-        if not history:
-            first_start = label
-        used, elapsed = (history[-1].iteration, history[-1].time_s) if history else (0, 0.0)
-
-        def shift(record: IterationRecord, used: int = used, elapsed: float = elapsed) -> IterationRecord:
-            """A record counted over all grids so far."""
-            return dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
-
-        # a stage before the last only provides a start: it stops on the looser ε, which stays fixed
-        stage = options if last else dataclasses.replace(options, eps=options.eps * COARSE_EPS_FACTOR,
-                                                         eps_floor=options.eps * COARSE_EPS_FACTOR)
-        stage = dataclasses.replace(stage, max_iter=budget)
-        shown = None if progress is None else (lambda record: progress(shift(record)))
-        result = descend(functional, plan.solver, plan.search, stage, shown, start, near_solution=near)
-        shrunk_to.append((result.options["eps"], result.options["delta"]))
-        history += [shift(record) for record in result.history]
-        per_grid[index] += result.iterations
-        earlier = [result] + ([iterate_view(functional, start)] if from_stage and result.iterations else [])
-        if result.status == Status.FAILED:
-            if not last:
-                band = " (band start)" if functional.signs != plan.signs else ""
-                result.reason = f"on the grid of {count} nodes{band}: {result.reason}"
-            break
-    result = _not_worse_than_start(functional, plan, result)
-    result.history = history
-    return _Run(functional, result, per_grid, shrunk_to, first_start)
-
-
-def _stalled(plan: _Staged, run: _Run) -> bool:
-    """Whether a Newton-type descent stopped at a local minimum of I (`stationary` with I > tol;
-    a cost's rounds restart on their own, :mod:`qdframe.solve.optimum`)."""
-    return (plan.solver.full_steps and run.functional.cost is None and run.result.status == Status.STATIONARY
-            and run.result.I > plan.options.tol)
-
-
-def _from_the_model(plan: _Staged, run: _Run, again: _Staged, progress: ProgressCallback | None) -> tuple[_Staged, _Run]:
-    """Where the simulated start stopped at a local minimum of I: the solve again as if the
-    model had no motion (`again`: the model's own start, its grids; :func:`_again`). A model
-    with controls is simulated under its first controls, whose motion can sit next to a
-    local minimum on a coarse grid (paper-7.3 on 11 and 101 points)."""
-    return _again(plan, run, again, MODEL, "the model's own start", progress)
-
-
-def _from_the_line(model: InclusionModel, plan: _Staged, run: _Run, progress: ProgressCallback | None) -> _Run:
-    """Where the grids from the model's start (x ≡ x0, at rest) stopped at a local minimum of
-    I: the grids again from the straight line between the given ends (:func:`_again`).
-    paper-7.3 at N = 11: the model's start stops at a local minimum, the line is solved."""
-    if not len(model.end_indices):
-        return run
-    return _again(plan, run, dataclasses.replace(plan, starts=LineStarts(model)), LINE,
-                  "the straight line between the given ends", progress)[1]
-
-
-def _again(plan: _Staged, run: _Run, again: _Staged, label: str, whence: str,
-           progress: ProgressCallback | None) -> tuple[_Staged, _Run]:
-    """`again` (another start, perhaps other grids) with the budget `run` left: its plan and
-    run (started from `label`) where it ends solved or lower than `run`, its history after
-    `run`'s and the iterations on the grids both ran added; else `plan` and `run`, with a
-    remark that the start `whence` ended no lower."""
-    used, elapsed = run.result.history[-1].iteration, run.result.history[-1].time_s
-    left = plan.options.max_iter - used
-    if left < 1:
-        return plan, run
-    shown = None if progress is None else (lambda record: progress(dataclasses.replace(
-        record, iteration=record.iteration + used, time_s=record.time_s + elapsed)))
-    # the budget left for these grids; the plan returned keeps the whole (the refinement after
-    # it and the message count the iterations over the whole solve)
-    budget = dataclasses.replace(again.plan, options=dataclasses.replace(again.options, max_iter=left))
-    second = _run_grids(dataclasses.replace(again, plan=budget), shown)
-    if not (second.result.status in (Status.SOLVED, Status.UNCERTIFIED) or second.result.objective < run.result.objective):
-        run.result.remarks.append(f"from {whence} too, it ended {second.result.status}, no lower")
-        return plan, run
-    second.result.history = run.result.history + [dataclasses.replace(
-        record, iteration=record.iteration + used, time_s=record.time_s + elapsed) for record in second.result.history]
-    per_grid = list(second.per_grid)
-    for count, spent in zip(plan.grids, run.per_grid):  # the first run's iterations, on the grids both ran
-        if count in again.grids:
-            per_grid[again.grids.index(count)] += spent
-    return again, _Run(second.functional, second.result, per_grid, run.shrunk_to + second.shrunk_to, label)
-
-
-def _lowest_start(starts: Starts, functional: Functional,
-                  earlier: list) -> tuple[str, np.ndarray, SolveResult | None]:
-    """The start of a grid: the lowest there of the earlier stages' iterates (the last one
-    first on a tie) and the model's own start (or its simulated motion); its label, and
-    the stage's result it came from (None: the model's start)."""
-    label, start = starts.best(functional)
-    source, lowest = None, np.inf
-    if earlier:
-        candidates = [interpolate(functional, result) for result in earlier] + [start]
-        for number, candidate in enumerate(candidates):
-            value = functional.objective(candidate)
-            if number == 0 or value < lowest:
-                start, lowest, source = candidate, value, earlier[number] if number < len(earlier) else None
-    return label, start, source
-
-
-def _not_worse_than_start(functional: Functional, plan: _Staged, result: SolveResult) -> SolveResult:
-    """The result, or the model's start returned unchanged where it is lower than the
-    iterate reached (status `stationary`, the message saying both)."""
-    first = functional.initial_point()
-    if result.status == Status.FAILED or not functional.objective(first) < result.objective:
-        return result
-    reached = result.reason  # how the descent ended, not its diagnosis of that iterate
-    result = descend(functional, plan.solver, plan.search, dataclasses.replace(plan.options, max_iter=0), None, first)
-    result.status = Status.STATIONARY
-    result.reason = reached
-    # then the diagnosis of the start, which is returned
-    result.remarks = ["the model's start is better than the iterate reached: returned unchanged", *result.remarks]
-    return result
-
-
-def _summarized(plan: _Staged, run: _Run, functional: Functional, result: SolveResult) -> SolveResult:
+def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveResult) -> SolveResult:
     """The result's options over the whole solve (grids, iterations per grid, the smallest
     ε and δ reached, the start) and its message where it did not end `solved`."""
     options = plan.options
