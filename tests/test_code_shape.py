@@ -57,3 +57,28 @@ def test_status_names_are_written_in_the_status_module_alone():
                         for value in ([operand] + list(getattr(operand, "elts", [])))
                         if isinstance(value, ast.Constant) and value.value in names]
     assert written == []
+
+
+def test_the_solve_and_descent_folders_keep_their_functions_under_80_lines():
+    """Issue 54: the cap of the outer loop and of one descent is 80 lines (a plan, a ladder, a loop
+    whose state is an object), not the package's 120."""
+    long = []
+    for path, tree in _trees().items():
+        if path.parent.name not in ("solve", "descent"):
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > 80:
+                long.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.name}")
+    assert long == []
+
+
+def test_the_command_line_imports_no_private_name_of_the_solve_package():
+    tree = ast.parse((PACKAGE / "cli.py").read_text())
+    private = [f"{node.module}.{alias.name}" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+               and (node.module or "").startswith("solve") for alias in node.names if alias.name.startswith("_")]
+    assert private == [] and any(isinstance(node, ast.ImportFrom) and node.module == "solve.plan"
+                                 for node in ast.walk(tree))
+
+
+def test_the_package_root_holds_at_most_15_files():
+    assert len(list(PACKAGE.glob("*.py"))) <= 15

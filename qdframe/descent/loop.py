@@ -88,123 +88,154 @@ def _blas() -> ThreadpoolController:
 
 def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
              progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool) -> SolveResult:
-    clock = time.perf_counter()
-    solver.start(functional)
-    xi, terms = _started(functional, start)
-    # the start's record at the time its terms are known, so that each later record's time
-    # minus the one before is that iteration alone (`qdframe bench scale`'s s/iter)
-    history = [_record(functional, 0, xi, terms, 0.0, None, float("nan"), clock)]
-    status, message = Status.MAX_ITER, f"{options.max_iter} iterations spent"
-    rejected, rejected_label = 0, ""  # trial points where the model was NaN/inf, and the last piece named
-    blocked: tuple[str, np.ndarray, ModelOutputError, str] | None = None  # where the model stops the descent
-    uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
-    # full-step rounds left (:func:`qdframe.descent.steps.watchdog`): where the descent stalls, and
-    # (from a coarser grid's solution) where a line search cuts a Newton step
-    rounds = {False: WATCHDOG_ROUNDS, True: EAGER_ROUNDS if near_solution else 0}
-    eps, delta = options.eps, options.delta  # shrunk where the iterate is ε-stationary but not solved
-    window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
-    optimal = False  # the stop is a stationary point of the objective (no decrease predicted, ε at the floor)
+    descent = _Descent(functional, solver, search, options, progress, start, near_solution)
+    try:
+        while descent.advance():
+            pass
+    except BackendError as exc:
+        descent.status, descent.message = Status.FAILED, str(exc)
+    except ModelOutputError as exc:  # at the accepted iterate (its gradients): nothing to return
+        raise located(functional, descent.xi, exc, f"the iterate after {len(descent.history) - 1} iterations") from exc
+    return descent.finished()
 
-    def escape(cut: np.ndarray | None = None) -> bool:
+
+class _Descent:
+    """One descent's state between iterations: the iterate and its terms, the history, how it
+    ends (status, message), and what its stopping rules keep (the full-step rounds left, the
+    worst check's ratios with I ≤ tol, the shrunk ε and δ, the rejected trial points)."""
+
+    def __init__(self, functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
+                 progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool) -> None:
+        self.functional, self.solver, self.search, self.options, self.progress = (functional, solver, search,
+                                                                                   options, progress)
+        self.clock = time.perf_counter()
+        solver.start(functional)
+        self.xi, self.terms = _started(functional, start)
+        # the start's record at the time its terms are known, so that each later record's time
+        # minus the one before is that iteration alone (`qdframe bench scale`'s s/iter)
+        self.history = [_record(functional, 0, self.xi, self.terms, 0.0, None, float("nan"), self.clock)]
+        self.status, self.message = Status.MAX_ITER, f"{options.max_iter} iterations spent"
+        self.rejected, self.rejected_label = 0, ""  # trial points where the model was NaN/inf, the last piece named
+        self.blocked: tuple[str, np.ndarray, ModelOutputError, str] | None = None  # where the model stops it
+        self.uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
+        # full-step rounds left (:func:`qdframe.descent.steps.watchdog`): where the descent stalls, and
+        # (from a coarser grid's solution) where a line search cuts a Newton step
+        self.rounds = {False: WATCHDOG_ROUNDS, True: EAGER_ROUNDS if near_solution else 0}
+        self.eps, self.delta = options.eps, options.delta  # shrunk where ε-stationary but not solved
+        self.window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
+        self.optimal = False  # the stop is a stationary point of the objective (no decrease predicted, ε at the floor)
+
+    def stop(self, status: Status, message: str, optimal: bool = False) -> bool:
+        self.status, self.message, self.optimal = status, message, optimal
+        return False
+
+    def escape(self, cut: np.ndarray | None = None) -> bool:
         """A round of full steps (for a solver whose steps are Newton steps, within the budget)
         where the descent would stop `stationary`, or from the step `cut` where the line search
         cut it; True when it found a much lower iterate, which the descent continues from."""
-        nonlocal xi, terms
-        budget = options.max_iter - (len(history) - 1)
+        functional, solver, options = self.functional, self.solver, self.options
+        budget = options.max_iter - (len(self.history) - 1)
         kind = cut is not None
-        if not solver.full_steps or budget < 1 or rounds[kind] < 1:
+        if not solver.full_steps or budget < 1 or self.rounds[kind] < 1:
             return False
-        rounds[kind] -= 1
+        self.rounds[kind] -= 1
         first = None if cut is None else options.gamma_max * cut  # the cut step taken whole
-        path = watchdog(functional, solver, xi, terms.objective, options, min(WATCHDOG_STEPS, budget), first)
+        path = watchdog(functional, solver, self.xi, self.terms.objective, options, min(WATCHDOG_STEPS, budget), first)
         for point, step in path:
-            xi, terms = point, functional.terms(point)
-            _append(history, progress, _record(functional, len(history), xi, terms, 1.0, step, float("nan"), clock))
+            self.xi, self.terms = point, functional.terms(point)
+            _append(self.history, self.progress, _record(functional, len(self.history), self.xi, self.terms, 1.0,
+                                                         step, float("nan"), self.clock))
         if path:
-            uncertified.clear()
+            self.uncertified.clear()
             solver.start(functional)  # its kept state (the damping) belongs to the stalled iterate
         return bool(path)
 
-    try:
-        while True:
-            iteration = len(history)
-            if terms.objective <= options.tol and terms.I <= options.tol:
-                found = checks.checks(functional, xi, options.residual_tol)
-                if not checks.failures(found):
-                    status, message = Status.SOLVED, ""
-                    break
-                uncertified.append(max(check.ratio for check in found))
-                if len(uncertified) > window and uncertified[-1] * CERTIFY_SHRINK > uncertified[-1 - window]:
-                    if escape():
-                        continue
-                    status, message = Status.STATIONARY, (f"the pointwise checks shrank by less than "
-                                                          f"{CERTIFY_SHRINK:g}× in {window} iterations with I ≤ tol")
-                    break
-            elif _creeping(functional, solver, options, history, terms):
-                if escape():
-                    continue
-                status, message = Status.STATIONARY, (f"the objective fell by less than {CERTIFY_SHRINK:g}× in "
-                                                      f"{CERTIFY_WINDOW} iterations with I = {terms.I:.1e} > tol")
-                break
-            if iteration > options.max_iter:
-                break
-            direction = solver.compute(functional, xi, delta)
-            deviation = float(np.max(direction.deviation))
-            if direction.stationary is None and deviation <= eps:
-                if eps > options.eps_floor:  # ε-stationary, not solved: the paper's ε and δ shrink, the descent goes on
-                    shrunk = max(eps / EPS_SHRINK, options.eps_floor)
-                    eps, delta = shrunk, delta * shrunk / eps
-                    uncertified.clear()
-                    continue
-                status, message = Status.STATIONARY, f"deviation {deviation:.2e} ≤ ε at every node"
-                optimal = eps <= EPS_FLOOR  # ε-stationary down to the certified floor
-                break
-            if direction.stationary:
-                if escape():
-                    continue
-                status, message = Status.STATIONARY, f"{solver.name}: no further decrease predicted"
-                optimal = True
-                break
-            step = keep_start(functional, solver, direction.step)
-            gamma, value, bad = _line_search(functional, search, xi, step, terms.objective, direction.slope,
-                                             options.gamma_max)
-            rejected += len(bad)
-            rejected_label = (bad[-1].error.label or rejected_label) if bad else rejected_label
-            if not (gamma > 0 and value < terms.objective):
-                blocked = _blocked_next_to(xi, step, bad, len(history) - 1)
-                if blocked is not None:
-                    break
-                if escape():
-                    continue
-                status, message = Status.STATIONARY, "no step along the direction decreases the objective"
-                optimal = abs(direction.slope) <= STALL_SLOPE * abs(terms.objective)
-                break
-            if gamma < options.gamma_max and escape(cut=step):  # full steps may pass the kink
-                continue
-            if rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined: stop
-                blocked = (f"a line-search trial point of iteration {iteration}", xi + bad[-1].gamma * step,
-                           bad[-1].error,
-                           f"{rejected} trial points rejected where the model is non-finite (the limit is "
-                           f"{REJECTED_LIMIT}): the descent keeps stepping where the model is not defined; make it "
-                           "finite there, or keep the states away from it (in the sets, or by the start)")
-                break
-            xi = xi + gamma * step
-            terms = functional.terms(xi)
-            _append(history, progress, _record(functional, iteration, xi, terms, gamma, step, deviation, clock))
-    except BackendError as exc:
-        status, message = Status.FAILED, str(exc)
-    except ModelOutputError as exc:  # at the accepted iterate (its gradients): nothing to return
-        raise located(functional, xi, exc, f"the iterate after {len(history) - 1} iterations") from exc
-    if blocked is not None:
-        where, point, error, why = blocked
-        raise located(functional, point, error, where, why) from error
-    if optimal and _penalized_optimum(functional, xi, terms, options):
-        status, message = Status.SOLVED, ""
-    remarks = [] if status == Status.SOLVED else _remarks(options, eps, delta, rejected, rejected_label)
-    result = result_of(functional, solver, search, dataclasses.replace(options, eps=eps, delta=delta), xi, status,
-                       message, remarks, history, time.perf_counter() - clock)
-    result.options["stationary_point"] = optimal  # of the objective: a higher penalty can move it (qdframe.solve.optimum)
-    return result
+    def settled(self) -> bool | None:
+        """The stopping rules at the iterate, before a direction: False to stop, True to go on
+        from a new iterate (a round of full steps), None to take the next step."""
+        functional, options, terms = self.functional, self.options, self.terms
+        if terms.objective <= options.tol and terms.I <= options.tol:
+            found = checks.checks(functional, self.xi, options.residual_tol)
+            if not checks.failures(found):
+                return self.stop(Status.SOLVED, "")
+            self.uncertified.append(max(check.ratio for check in found))
+            window = self.window
+            if len(self.uncertified) > window and self.uncertified[-1] * CERTIFY_SHRINK > self.uncertified[-1 - window]:
+                return True if self.escape() else self.stop(
+                    Status.STATIONARY, f"the pointwise checks shrank by less than {CERTIFY_SHRINK:g}× in {window} "
+                                       "iterations with I ≤ tol")
+        elif _creeping(functional, self.solver, options, self.history, terms):
+            return True if self.escape() else self.stop(
+                Status.STATIONARY, f"the objective fell by less than {CERTIFY_SHRINK:g}× in {CERTIFY_WINDOW} "
+                                   f"iterations with I = {terms.I:.1e} > tol")
+        return None
+
+    def advance(self) -> bool:
+        """One iteration (paper Section 6): False where the descent stops."""
+        functional, solver, options = self.functional, self.solver, self.options
+        iteration = len(self.history)
+        settled = self.settled()
+        if settled is not None:
+            return settled
+        if iteration > options.max_iter:
+            return False
+        direction = solver.compute(functional, self.xi, self.delta)
+        deviation = float(np.max(direction.deviation))
+        if direction.stationary is None and deviation <= self.eps:
+            if self.eps > options.eps_floor:  # ε-stationary, not solved: the paper's ε and δ shrink, on it goes
+                shrunk = max(self.eps / EPS_SHRINK, options.eps_floor)
+                self.eps, self.delta = shrunk, self.delta * shrunk / self.eps
+                self.uncertified.clear()
+                return True
+            # ε-stationary down to the certified floor: a stationary point
+            return self.stop(Status.STATIONARY, f"deviation {deviation:.2e} ≤ ε at every node", self.eps <= EPS_FLOOR)
+        if direction.stationary:
+            return True if self.escape() else self.stop(
+                Status.STATIONARY, f"{solver.name}: no further decrease predicted", True)
+        step = keep_start(functional, solver, direction.step)
+        gamma, value, bad = _line_search(functional, self.search, self.xi, step, self.terms.objective, direction.slope,
+                                         options.gamma_max)
+        self.rejected += len(bad)
+        self.rejected_label = (bad[-1].error.label or self.rejected_label) if bad else self.rejected_label
+        if not (gamma > 0 and value < self.terms.objective):
+            self.blocked = _blocked_next_to(self.xi, step, bad, len(self.history) - 1)
+            if self.blocked is not None:
+                return False
+            return True if self.escape() else self.stop(
+                Status.STATIONARY, "no step along the direction decreases the objective",
+                abs(direction.slope) <= STALL_SLOPE * abs(self.terms.objective))
+        if gamma < options.gamma_max and self.escape(cut=step):  # full steps may pass the kink
+            return True
+        if self.rejected >= REJECTED_LIMIT and bad:  # the descent keeps stepping where the model is not defined
+            self.blocked = (f"a line-search trial point of iteration {iteration}", self.xi + bad[-1].gamma * step,
+                            bad[-1].error,
+                            f"{self.rejected} trial points rejected where the model is non-finite (the limit is "
+                            f"{REJECTED_LIMIT}): the descent keeps stepping where the model is not defined; make it "
+                            "finite there, or keep the states away from it (in the sets, or by the start)")
+            return False
+        self.xi = self.xi + gamma * step
+        self.terms = functional.terms(self.xi)
+        _append(self.history, self.progress, _record(functional, iteration, self.xi, self.terms, gamma, step,
+                                                     deviation, self.clock))
+        return True
+
+    def finished(self) -> SolveResult:
+        """The result of the last iterate (a model that blocks the descent raised, named)."""
+        functional, options = self.functional, self.options
+        if self.blocked is not None:
+            where, point, error, why = self.blocked
+            raise located(functional, point, error, where, why) from error
+        status, message = self.status, self.message
+        if self.optimal and _penalized_optimum(functional, self.xi, self.terms, options):
+            status, message = Status.SOLVED, ""
+        remarks = [] if status == Status.SOLVED else _remarks(options, self.eps, self.delta, self.rejected,
+                                                               self.rejected_label)
+        result = result_of(functional, self.solver, self.search,
+                           dataclasses.replace(options, eps=self.eps, delta=self.delta), self.xi, status, message,
+                           remarks, self.history, time.perf_counter() - self.clock)
+        # a stationary point of the objective: a higher penalty can move it (qdframe.solve.optimum)
+        result.options["stationary_point"] = self.optimal
+        return result
 
 
 def _blocked_next_to(xi: np.ndarray, step: np.ndarray, bad: list["_Trial"], iterations: int):

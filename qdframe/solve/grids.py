@@ -1,7 +1,24 @@
 """The grids of a solve and a descent on each: a :class:`~qdframe.solve.plan.Plan` made
 concrete for one model (:func:`staged`: the first mesh, the continuation ladder below it, a
 functional each, the starts on offer) and the descents on them, coarsest first
-(:func:`run_grids`), each from the lowest start on offer there."""
+(:func:`run_grids`), each from the lowest start on offer there.
+
+`continuation` lists coarser grids to solve on first (e.g. (11, 101) before nodes=1001):
+each grid's result, interpolated, starts the next. "auto" is the ladder 11, 101, 1001, …
+below `nodes` (:func:`~qdframe.solve.continuation.grid_schedule`), "none" (or ()) the one
+grid, None the direction's own (`default_continuation`: "auto" from the direction's
+`coarsest_nodes` with its `ladder_steps`: 11, 101, 1001, … for the paper's min-norm
+directions, 101, 301, 1001, 3001, … for gauss-newton), and none where the model's motion
+starts the requested grid. Each grid starts from the lowest, on that grid, of the previous
+stage's iterate, the start that stage had (if it came from a stage) and the model's own
+start. `max_iter` is the budget of all G grids together: a coarser grid spends at most
+max(1, max_iter // (2G)) (its band start included) and leaves one iteration to each later
+grid, so the requested grid gets the rest: at least half when max_iter ≥ 2G and ≥ 1 when
+max_iter ≥ 1 (a coarse grid left no iteration is skipped). A stage before the last only
+provides a start and stops on 10·ε. The history and `iterations` cover all grids, each
+record naming its grid (`nodes`); each grid after the first adds a record of its start
+(same iteration number); `options["iterations_per_grid"]` is aligned with
+`options["grids"]`, and a status other than `solved` after several grids says so."""
 
 from __future__ import annotations
 

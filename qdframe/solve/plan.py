@@ -38,6 +38,7 @@ DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`node
 ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
 ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
 BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
+ESTIMATE_DIRECTION, ESTIMATE_LINE_SEARCH = "gauss-newton", "armijo"  # a bisection estimate's solve, whatever the user's
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,8 @@ class Plan:
     selection_scale: float
     inputs: str
     simulate_start: bool
+    estimate_direction: DirectionSolver  # the bisection estimate's solve on the bisected grid (gauss-newton)
+    estimate_line_search: LineSearch
 
     @property
     def budget(self) -> int:
@@ -121,7 +124,8 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
         first_scheme=BOOTSTRAP_SCHEME if refining else requested, options=options, direction=solver,
         line_search=search, continuation=continuation, estimate=estimate, certificate=certificate,
         max_nodes=max_nodes, signs=signs, selection_scale=selection_scale, inputs=inputs,
-        simulate_start=simulate_start,
+        simulate_start=simulate_start, estimate_direction=make_direction(ESTIMATE_DIRECTION),
+        estimate_line_search=make_line_search(ESTIMATE_LINE_SEARCH),
     )
 
 

@@ -58,60 +58,36 @@ def solve(
     free_T: bool | None = None,
     parameters: Mapping[str, float] | None = None,
 ) -> SolveResult:
-    """Find a trajectory of `model` by quasidifferential descent.
+    """Find a trajectory of `model` by quasidifferential descent, certified to a target.
 
-    `direction` "gauss-newton" (the default) or "native" (the paper's method), or any registered name or
-    DirectionSolver; `line_search` likewise, by default the direction's own (armijo, golden).
+    One rule (:mod:`qdframe.solve.plan`, whose table it is) decides the kind of solve: given
+    `accuracy`, or neither `nodes` nor `mesh`, the mesh is refined until the error estimate
+    of max_t |x(t) − x*(t)| is ≤ accuracy·max(1, max|x|) (default 1e-6), from 21 points (or
+    the model's simulated motion), by radau-iia after implicit Euler's first solves, up to
+    `max_nodes`; otherwise the grid of `nodes` points (default 101) or the `mesh` times
+    0 = τ_0 < … < τ_K = T is fixed, its estimate made once (`estimate=False` skips it).
+    `qdframe.solve.plan(model, …)` returns that plan for the same arguments.
 
-    `continuation` lists coarser grids to solve on first (e.g. (11, 101) before
-    nodes=1001): each grid's result, interpolated, starts the next. "auto" is the ladder
-    11, 101, 1001, … below `nodes` (:func:`grid_schedule`), "none" (or ()) the one grid,
-    None the direction's own (`default_continuation`: "auto" for both, from the
-    direction's `coarsest_nodes` with its `ladder_steps`: 11, 101, 1001, … for the paper's
-    min-norm directions, 101, 301, 1001, 3001, … for gauss-newton). Each grid starts from
-    the lowest, on that grid, of the previous stage's iterate, the start that stage had (if
-    it came from a stage) and the model's own start. `max_iter` is the budget of all G
-    grids together: a coarser grid spends at most max(1, max_iter // (2G)) (its band start
-    included) and leaves one iteration to each later grid, so the requested grid gets the
-    rest: at least half when max_iter ≥ 2G and ≥ 1 when max_iter ≥ 1 (a coarse grid left
-    no iteration is skipped). A stage before the last only provides a start and stops on
-    10·ε. The history and `iterations` cover all grids, each record naming its grid (`nodes`); each grid
-    after the first adds a record of its start (same iteration number); `options["iterations_per_grid"]`
-    is aligned with `options["grids"]`, and a status other than `solved` after several grids says so.
+    `direction` "gauss-newton" (the default), "native" (the paper's method), any registered
+    name or a DirectionSolver; `line_search` likewise (default: the direction's own).
+    `continuation` the coarser grids solved first ("auto", "none", a list, or None: the
+    direction's own; :mod:`qdframe.solve.grids` says how `max_iter`, the budget of the whole
+    solve, is shared among them). `scheme` discretizes x' = z ("trapezoid", the paper's;
+    "implicit-euler"; "radau-iia"; None: the plan's). `signs` "exact" gives every sign term
+    a·Sgn(s) a selection λ ∈ [−1, 1] per node tied to s by the natural map with scale
+    `selection_scale`; "band" uses each term's C¹ band. `inputs` "held" keeps the choice in
+    each fixed set one per mesh interval of radau-iia; "free" lets every point choose.
+    `certificate` "replay" or "bisection" (None: by the problem). `free_T` and `parameters`
+    restate the model with T free or fixed, or other guesses of its unknown parameters.
 
-    `scheme` discretizes x' = z (:mod:`qdframe.schemes`: "trapezoid", the paper's; "implicit-euler";
-    "radau-iia", where `nodes` counts mesh and stage points and is odd); None is the model's
-    `default_scheme` (implicit Euler unless the model says otherwise). `signs` "exact" gives every sign
-    term a·Sgn(s) a selection λ ∈ [−1, 1] per node tied to s by the natural map λ = clip(λ + c·s, −1, 1),
-    c = `selection_scale` (the result's `selections`); "band" uses each term's C¹ band instead. `inputs`
-    "held" keeps the choice in each fixed set (a bounded input) one per mesh interval of radau-iia
-    (:mod:`qdframe.functional.held`); "free" lets every point choose.
-
-    Stops `solved` when the objective and I are ≤ tol (the model's default tol if
-    None), `stationary` when every node's deviation is ≤ ε or no step decreases the
-    objective (the paper's min-norm directions: where every node's deviation is ≤ ε but the
-    iterate is not solved, ε and δ shrink together by 10 and the descent goes on, down to
-    ε = `eps_floor`; None: 1e-12 for a certified solve, `nodes`/`mesh` without `accuracy`
-    keep the paper's fixed ε and δ; `options["eps"]` and `options["delta"]` are the smallest
-    its descents reached), `max_iter` when the budget is spent, `failed` when a backend reports an
-    error mid-run (the message says which).
-
-    A line-search trial point where the model returns NaN/inf is rejected (no decrease);
-    :class:`~qdframe.errors.ModelOutputError` is raised, naming the piece, node, t and the
-    state there, when the model is non-finite at an accepted iterate (its values or
-    gradients, at the start too) or on every step from it (the descent cannot continue).
-    The returned x(t_0) is the model's x0 exactly where x0 is given. `wall_time_s` is
-    the whole call: every grid, its start, its result's checks and the error estimate.
-
-    `nodes` is the number of points (default 101; under `accuracy`, 21: the first mesh).
-    `mesh` gives the mesh times 0 = τ_0 < … < τ_K = T of the requested grid (nonuniform
-    allowed; `nodes` is then stages·K + 1 and is ignored). A `solved` result carries
-    `error_estimate`, an estimate of max_t |x(t) − x*(t)| from a second solve on the
-    bisected mesh (:mod:`qdframe.solve.adaptive`; `estimate=False` skips it: None), and
-    `switch_times`, where a Filippov selection changes regime (:mod:`qdframe.certificates.switches`).
-    `accuracy` asks for error_estimate ≤ accuracy: mesh points are moved onto the switch
-    times and the mesh is refined where the estimate is large, up to `max_nodes` points;
-    with `accuracy` and no `scheme` the scheme is radau-iia (order 3).
+    The descent (:mod:`qdframe.descent`) stops `solved` when the objective and I are ≤ `tol`
+    (the model's default) and every pointwise check passes (`residual_tol`), `stationary`
+    when it can go no further (the paper's δ, ε, γ̄ as `delta`, `eps`, `gamma_max`; ε and δ
+    shrink down to `eps_floor`), `max_iter` when the budget is spent, `failed` when a
+    backend reports an error. The verdict keeps `solved` only where the estimate meets the
+    target (`uncertified` otherwise). A model non-finite at an accepted iterate raises
+    ModelOutputError naming the piece, node, t and state. `progress` is called with each
+    iteration's record; `wall_time_s` is the whole call.
     """
     clock = time.perf_counter()
     if isinstance(model, str):
@@ -155,10 +131,7 @@ def _verdict(attempt: Attempt) -> tuple[Attempt, Functional, SolveResult]:
     """The attempt's last trajectory certified (:func:`qdframe.solve.verdict.certify_result`),
     the cost's rounds counted in, summarized."""
     plan, run = attempt.staged, attempt.run
-    chosen = attempt.plan
-    functional, result = certify_result(run.functional, run.result, plan.solver, plan.search, plan.options,
-                                        attempt.progress, chosen.estimate, plan.target if plan.refining else None,
-                                        plan.target, chosen.certificate, chosen.max_nodes, plan.requested, plan.starts)
+    functional, result = certify_result(run.functional, run.result, plan.plan, attempt.progress, plan.starts)
     if attempt.rounds:
         _penalty_verdict(functional, result, attempt.rounds, plan.target)
     result.iterations = result.history[-1].iteration

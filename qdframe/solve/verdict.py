@@ -14,30 +14,31 @@ from . import adaptive
 from ..descent import checks
 from ..certificates import switches
 from .continuation import interpolate
-from ..descent.loop import DescentOptions, ProgressCallback, descend
-from ..directions.base import DirectionSolver
+from ..descent.loop import ProgressCallback, descend
 from ..functional import Functional
-from ..line_searches.base import LineSearch
-from ..registry import make_direction, make_line_search
 from ..result import SolveResult
-from ..schemes import Scheme
+from .plan import Plan
 from .start import MODEL, Starts
 from ..status import Status
 
 COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected grid
 
 
-def certify_result(functional: Functional, result: SolveResult, solver: DirectionSolver, search: LineSearch,
-                   options: DescentOptions, progress: ProgressCallback | None, wanted: bool,
-                   accuracy: float | None, target: float, certificate: str | None, max_nodes: int,
-                   scheme: str | Scheme, starts: Starts | None = None) -> tuple[Functional, SolveResult]:
+def certify_result(functional: Functional, result: SolveResult, plan: Plan, progress: ProgressCallback | None,
+                   starts: Starts | None = None) -> tuple[Functional, SolveResult]:
     """The result with its switch times, its error estimate and its status against the
-    target: under `accuracy`, refined until the estimate meets it (:func:`adaptive.to_accuracy`),
+    plan's target: refining, refined until the estimate meets it (:func:`adaptive.to_accuracy`),
     else on its fixed grid (:func:`adaptive.on_fixed_grid`). `solved` stays only where the
     estimate is ≤ target·max(1, max|x|); a discrete solve whose estimate is larger, or that
-    has none, is `uncertified`. Every descent appends to the history."""
+    has none, is `uncertified`. The plan's direction re-solves on refined meshes, its
+    `estimate_direction` solves the bisected grid of a bisection estimate. Every descent
+    appends to the history."""
+    solver, search, options = plan.direction, plan.line_search, plan.options
+    wanted, certificate, max_nodes, scheme = plan.estimate, plan.certificate, plan.max_nodes, plan.scheme
+    target = plan.target
+    accuracy = target if plan.refining else None
     history, meshes, shrunk_to = result.history, [], []
-    companion_solver, companion_search = make_direction("gauss-newton"), make_line_search("armijo")
+    companion_solver, companion_search = plan.estimate_direction, plan.estimate_line_search
 
     def run(target_functional: Functional, previous: SolveResult, own: bool) -> SolveResult:
         """A descent on `target_functional` from `previous` interpolated: the user's solver
@@ -74,37 +75,42 @@ def certify_result(functional: Functional, result: SolveResult, solver: Directio
     solved = result.status == Status.SOLVED  # the discrete problem: every pointwise check passes
     result.switch_times = switches.switch_times(functional, adaptive.iterate(functional, result)) if solved \
         else np.zeros(0)
-    note = outcome.note
-    if solved:
-        bound = adaptive.tolerance(target, result, functional)
-        unclosed = checks.closed_by_tolerance(functional, np.asarray(result.x, float))
-        if unclosed:
-            result.status = Status.UNCERTIFIED
-            note = _join(note, f"{unclosed}: a longer T, or with T free a lower bound (T_bounds)")
-        elif found.value is None:
-            result.status = Status.UNCERTIFIED
-            reason = found.detail or "no error estimate"
-            note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error is not "
-                               f"certified: {reason}" + ("" if accuracy is not None else
-                                                         f"; more nodes, or accuracy={target:g}"))
-        elif found.value > bound:
-            result.status = Status.UNCERTIFIED
-            note = _join(note, f"the discrete problem is solved on {result.nodes} points, but its error estimate "
-                               f"{found.value:.1e} ({found.certificate}) exceeds the target {bound:.1e}"
-                         + ("" if accuracy is not None else f": more nodes, or accuracy={target:g}"))
-        else:
-            note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
-            if found.detail:
-                note = _join(note, found.detail)
-            if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
-                result.switch_times = switches.polish(result.switch_times, found.switch_times,
-                                                      functional.grid.mesh_times)
+    note = _status(functional, result, found, target, outcome.note, refining=accuracy is not None) if solved \
+        else outcome.note
     result.options = {**result.options, "estimate_time_s": outcome.seconds, "shrunk_to": shrunk_to}
     if accuracy is not None:
         result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
     if note:
         result.remarks.append(note)
     return functional, result
+
+
+def _status(functional: Functional, result: SolveResult, found, target: float, note: str, refining: bool) -> str:
+    """A solved discrete result's status against the target (`uncertified` where a periodic
+    condition closes by tolerance alone, there is no estimate, or it passes the target), its
+    switch times polished by a replay that is the solution; the note that says so."""
+    bound = adaptive.tolerance(target, result, functional)
+    hint = "" if refining else f"; more nodes, or accuracy={target:g}"
+    unclosed = checks.closed_by_tolerance(functional, np.asarray(result.x, float))
+    if unclosed:
+        result.status = Status.UNCERTIFIED
+        return _join(note, f"{unclosed}: a longer T, or with T free a lower bound (T_bounds)")
+    if found.value is None:
+        result.status = Status.UNCERTIFIED
+        reason = found.detail or "no error estimate"
+        return _join(note, f"the discrete problem is solved on {result.nodes} points, but its error is not "
+                           f"certified: {reason}" + hint)
+    if found.value > bound:
+        result.status = Status.UNCERTIFIED
+        return _join(note, f"the discrete problem is solved on {result.nodes} points, but its error estimate "
+                           f"{found.value:.1e} ({found.certificate}) exceeds the target {bound:.1e}"
+                     + ("" if refining else f": more nodes, or accuracy={target:g}"))
+    note = _join(f"error estimate {found.value:.1e} ({found.certificate}) ≤ target {bound:.1e}", note)
+    if found.detail:
+        note = _join(note, found.detail)
+    if found.switch_times is not None:  # certified, and its replay is the solution: that motion's events
+        result.switch_times = switches.polish(result.switch_times, found.switch_times, functional.grid.mesh_times)
+    return note
 
 
 def _join(*parts: str) -> str:
