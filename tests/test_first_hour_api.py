@@ -111,16 +111,19 @@ def test_a_nan_when_the_direction_evaluates_the_accepted_iterate_names_its_state
     class Failing(GaussNewton):
         name = "failing"
 
+        calls = 0  # this descent's calls (start() begins a descent)
+
+        def start(self, functional):
+            super().start(functional)
+            self.calls = 0
+
         def compute(self, functional, xi, delta):
-            if self._state.get("calls", 0) == 1:
+            if self.calls == 1:
                 self.seen = xi.copy()
                 raise ModelOutputError("model 'x': a piece returned a non-finite value at node 3",
                                        label="block vel' max-group \"vel'\"", node=3, nonfinite=True)
-            self._state["calls"] = self._state.get("calls", 0) + 1
-            calls = self._state["calls"]
-            direction = super().compute(functional, xi, delta)
-            self._state["calls"] = calls
-            return direction
+            self.calls += 1
+            return super().compute(functional, xi, delta)
 
     model = qdframe.load_model("paper-7.1")
     direction = Failing()

@@ -261,8 +261,8 @@ class _ShortSteps(qdframe.directions.gauss_newton.GaussNewton):
     def compute(self, functional, xi, delta):
         full = super().compute(functional, xi, delta)
         # what gauss-newton adapts μ by, for the cut step: its move and the model's decrease along it
-        self._state["step"] = self.fraction * self._state["step"]
-        self._state["predicted"] *= self.fraction * (2.0 - self.fraction)
+        self.state = dataclasses.replace(self.state, step=self.fraction * self.state.step,
+                                         predicted=self.state.predicted * self.fraction * (2.0 - self.fraction))
         return dataclasses.replace(full, step=self.fraction * full.step, slope=self.fraction * full.slope)
 
 

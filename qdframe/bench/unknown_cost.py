@@ -60,11 +60,9 @@ class _Iterates:
         self.solver.start(self.functional)
 
     def _trial(self):
-        """A copy of the solver that shares its KKT analysis and skeleton but not its μ or
-        active set (so that an iteration can be taken again from the same state)."""
-        trial = copy.copy(self.solver)
-        trial._state = dict(self.solver._state)
-        return trial
+        """A copy of the solver from the same state (its KKT analysis and skeleton shared; the
+        state is replaced, never changed, by a step: an iteration can be taken again)."""
+        return copy.copy(self.solver)
 
     def timed(self) -> float:
         trial = self._trial()

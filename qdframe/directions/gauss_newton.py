@@ -46,6 +46,7 @@ general backend (and polishes that backend's step); :class:`Step` runs the one, 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
@@ -62,6 +63,25 @@ from .step_qp import (KKT_TOL, ActiveSetStep, SparseQP, StepQPSolver, StepSoluti
 
 if TYPE_CHECKING:
     from ..functional import Functional
+
+
+@dataclass(frozen=True)
+class GaussNewtonState:
+    """What gauss-newton keeps between the iterations of one solve, replaced (never changed)
+    by each step: the damping μ and the step's predicted decrease, objective, iterate and step
+    (for the next μ), the active set and QP solution it warm-starts from, the ξ-independent
+    part of the linearized system (`skeleton`) and the KKT solver with its analysis."""
+
+    backend: StepQPSolver
+    mu: float | None = None
+    previous_value: float | None = None
+    predicted: float | None = None
+    xi: np.ndarray | None = None
+    step: np.ndarray | None = None
+    active_set: object = None
+    qp_solution: object = None
+    skeleton: Skeleton | None = None
+    kkt: KKTSolver | None = None
 
 
 @dataclass
@@ -93,7 +113,7 @@ class GaussNewton(DirectionSolver):
     mu_max: float = 1e8
     qp: str | StepQPSolver = ActiveSetStep.name
     qp_polish: bool = True
-    _state: dict = field(default_factory=dict, repr=False)
+    state: GaussNewtonState | None = field(default=None, init=False, repr=False)  # of the solve at hand
     option_rules = {name: number_rule(above=0.0, why="a damping") for name in ("mu", "mu_min", "mu_max")}
 
     def __post_init__(self) -> None:
@@ -109,62 +129,66 @@ class GaussNewton(DirectionSolver):
         if not isinstance(self.qp_polish, bool):
             raise OptionError(type(self).__name__, "qp_polish", "True or False", self.qp_polish)
         if isinstance(self.qp, StepQPSolver):  # an instance: a backend of one's own, registered or not
-            self._state["backend"] = self.qp
+            self.state = GaussNewtonState(self.qp)
             return
         try:
-            self._state["backend"] = make_step_qp(str(self.qp))
+            self.state = GaussNewtonState(make_step_qp(str(self.qp)))
         except QdframeError:
             raise OptionError(type(self).__name__, "qp", step_qp_expected(str(self.qp)), self.qp) from None
 
     @property
     def label(self) -> str:
-        backend = self._state.get("backend")
+        backend = None if self.state is None else self.state.backend
         name = getattr(backend, "label", None) or getattr(self.qp, "label", str(self.qp))
         options = ([] if name == ActiveSetStep.name else [f"qp={name}"]) + ([] if self.qp_polish else ["qp_polish=false"])
         return self.name + (f"[{','.join(options)}]" if options else "")
 
     def compute(self, functional: "Functional", xi: np.ndarray, delta: float) -> Direction:
         value = functional.objective(xi)
-        self._adapt(xi, value)
-        skeleton = self._state.get("skeleton")
-        if skeleton is None or skeleton.f is not functional:  # the ξ-independent part: once per functional
-            skeleton = self._state["skeleton"] = Skeleton(functional)
-        system = LinearizedSystem(functional, xi, delta, value, skeleton)
-        solver = Step(system, self._state.setdefault("kkt", KKTSolver()))
-        found = solver.solve(self._state["mu"], warm=self._state.get("active_set"), backend=self._state["backend"],
-                             polish=self.qp_polish, previous=self._state.get("qp_solution"))
+        state = self.state
+        state = dataclasses.replace(state, mu=self._damping(state, xi, value))
+        if state.skeleton is None or state.skeleton.f is not functional:  # the ξ-independent part: once per functional
+            state = dataclasses.replace(state, skeleton=Skeleton(functional))
+        if state.kkt is None:
+            state = dataclasses.replace(state, kkt=KKTSolver())
+        system = LinearizedSystem(functional, xi, delta, value, state.skeleton)
+        solver = Step(system, state.kkt)
+        found = solver.solve(state.mu, warm=state.active_set, backend=state.backend, polish=self.qp_polish,
+                             previous=state.qp_solution)
         step = system.unknowns_step(found.d)
-        self._state.update(previous_value=value, predicted=found.predicted, xi=xi, step=step, active_set=found.settled,
-                           qp_solution=solver.qp_solution)
+        self.state = dataclasses.replace(state, previous_value=value, predicted=found.predicted, xi=xi, step=step,
+                                         active_set=found.settled, qp_solution=solver.qp_solution)
         per_node = np.linalg.norm(step, axis=1)
         return Direction(step=step, deviation=per_node, slope=found.slope,
                          stationary=bool(found.predicted <= 1e-14 * max(value, 1e-300) or not np.any(per_node)))
 
     def start(self, functional: "Functional") -> None:
-        self._state = {"backend": self._state["backend"]}  # made by check_options
+        self.state = GaussNewtonState(self.state.backend)  # its backend made by check_options
 
     @property
     def factorizations(self) -> int:
         """KKT factorizations since the solve began (one per guess of the active-set iteration)."""
-        kkt = self._state.get("kkt")
+        kkt = None if self.state is None else self.state.kkt
         return kkt.factorizations if kkt is not None else 0
 
-    def _adapt(self, xi: np.ndarray, value: float) -> None:
-        state = self._state
-        if "step" not in state:  # the first iteration of a solve
-            state["mu"] = self.mu
-            return
-        predicted = state["predicted"]
-        ratio = (state["previous_value"] - value) / predicted if predicted > 0 else 0.0
-        step = state["step"]
+    def _damping(self, state: GaussNewtonState, xi: np.ndarray, value: float) -> float:
+        """μ for the step from ξ: the option's at a solve's first iteration, then as the last
+        step fared (Levenberg–Marquardt: the line search's cut and the decrease's ratio to the
+        predicted)."""
+        if state.step is None:  # the first iteration of a solve
+            return self.mu
+        predicted = state.predicted
+        ratio = (state.previous_value - value) / predicted if predicted > 0 else 0.0
+        step = state.step
         norm2 = float(np.sum(step**2))
-        gamma = float(np.sum((xi - state["xi"]) * step)) / norm2 if norm2 > 0 else 1.0
+        gamma = float(np.sum((xi - state.xi) * step)) / norm2 if norm2 > 0 else 1.0
         if gamma < 0.5:  # the line search cut the step: the LM step scales like 1/μ
-            state["mu"] = min(state["mu"] * 2.0 / max(gamma, 1e-6), self.mu_max)
-        elif ratio > 0.75:
-            state["mu"] = max(state["mu"] / 10.0, self.mu_min)
-        elif ratio < 0.25:
-            state["mu"] = min(state["mu"] * 2.0, self.mu_max)
+            return min(state.mu * 2.0 / max(gamma, 1e-6), self.mu_max)
+        if ratio > 0.75:
+            return max(state.mu / 10.0, self.mu_min)
+        if ratio < 0.25:
+            return min(state.mu * 2.0, self.mu_max)
+        return state.mu
 
 
 MAX_GUESSES = 30  # KKT solves of the active-set iteration before Clarabel takes over
