@@ -18,7 +18,8 @@ import pytest
 import qdframe
 from qdframe import registry
 from qdframe.bench import problems
-from qdframe.bench.run import SUITES, Case, plan, run_case
+from qdframe.bench.cases import SUITES, Case, plan
+from qdframe.bench.execution import run_case
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGIN = textwrap.dedent('''

@@ -24,7 +24,10 @@ The models the benchmarks pose live with every other built-in model, in :mod:`qd
 
 from .compare_directions import bench_directions, format_table, write_json
 from .report import shifted_geometric_mean, summarize, write_report
-from .run import SUITES, Case, Plan, ResultStore, execute, plan, run_case, run_sweep
+from .cases import SUITES, Case, Plan, plan
+from .execution import execute, run_case
+from .run import run_sweep
+from .storage import ResultStore
 
 __all__ = [
     "Case",

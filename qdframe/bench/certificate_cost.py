@@ -147,6 +147,6 @@ def write(rows: Sequence[dict], folder: str | Path, command: str) -> None:
 def _version() -> str:
     """qdframe's version and the commit of its source (as the run reports name it)."""
     from .. import __version__
-    from .run import source_commit
+    from .storage import source_commit
 
     return f"{__version__}, commit {source_commit() or 'unknown'}"

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..argtypes import counts, integer, names, node_counts, positive_float, tolerances, vector, writable
 from ..errors import InputError
-from .run import SUITES
+from .cases import SUITES
 
 
 def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> None:
@@ -282,7 +282,8 @@ def _time_optimal(args: argparse.Namespace, argv: Sequence[str]) -> int:
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .references import cross_check
     from .report import ranking, ratio_table, time_table, write_report
-    from .run import plan, run_sweep
+    from .cases import plan
+    from .run import run_sweep
 
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler", "to be used with --executor dask", args.scheduler)

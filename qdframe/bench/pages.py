@@ -20,7 +20,7 @@ from pathlib import Path
 
 from . import certificate_cost
 from .report import ranking, ratio_table, solver_times
-from .run import read_csv
+from .storage import read_csv
 
 PAGES = ("README.md", "docs/benchmark-results.md")
 SUITES = ("quick", "standard", "directions")  # the folders of docs/bench; directions: --suite quick --directions all

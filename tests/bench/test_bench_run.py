@@ -17,10 +17,12 @@ import pytest
 from qdframe.cli import main as qdframe_main
 from qdframe.registry import make_direction
 from qdframe.bench import nosnoc_peer as bench_peers
-from qdframe.bench import run as bench_sweep
+from qdframe.bench import cases as bench_cases, execution as bench_execution, storage as bench_storage
 from qdframe.bench.report import (common_models, ranking, ratios, shifted_geometric_mean, solver_times, summarize,
                                   time_to)
-from qdframe.bench.run import Case, claim, read_csv, run_case
+from qdframe.bench.cases import Case
+from qdframe.bench.execution import run_case
+from qdframe.bench.storage import claim, read_csv
 
 TINY = ["run", "--models", "paper-7.1,coulomb-rest-to-rest", "--directions", "gauss-newton,native",
         "--nodes", "11", "--accuracy", "none", "--max-iter", "15", "--quiet"]
@@ -80,7 +82,7 @@ def test_tiny_sweep_writes_csv_json_figures_and_report(tiny):
         assert heading in report, heading
     assert "**paper-7.1** — exact" in report and "**coulomb-rest-to-rest** — events replay" in report
     assert "![work-precision diagrams](work_precision.png)" in report
-    commit = bench_sweep.source_commit()  # the report says which source made it (None outside git)
+    commit = bench_storage.source_commit()  # the report says which source made it (None outside git)
     assert json.loads((tiny / "results.json").read_text())["commits"] == ([commit] if commit else [])
     if commit:
         assert f"commit {commit}" in report
@@ -99,8 +101,8 @@ def test_resume_after_deleting_a_row_runs_only_that_row(tiny, tmp_path, monkeypa
     deleted = lines.pop(2)  # the header is line 0
     (out / "results.csv").write_text("".join(lines))
     ran = []
-    real = bench_sweep.run_case
-    monkeypatch.setattr(bench_sweep, "run_case", lambda case: ran.append(case.key) or real(case))
+    real = bench_execution.run_case
+    monkeypatch.setattr(bench_execution, "run_case", lambda case: ran.append(case.key) or real(case))
     assert qdframe_main(["bench", *TINY, "--out", str(out), "--resume"]) == 0
     assert len(ran) == 1
     assert deleted.split(",")[:5] == [ran[0][0], f"{ran[0][1]} / {ran[0][2]}", ran[0][1], ran[0][2], ran[0][3]]
@@ -111,7 +113,7 @@ def test_resume_after_deleting_a_row_runs_only_that_row(tiny, tmp_path, monkeypa
 
 def test_interrupted_sweep_resumes_without_duplicates(tmp_path, monkeypatch, capsys):
     out = tmp_path / "interrupted"
-    real = bench_sweep.run_case
+    real = bench_execution.run_case
     done = []
 
     def interrupted(case):
@@ -120,12 +122,12 @@ def test_interrupted_sweep_resumes_without_duplicates(tmp_path, monkeypatch, cap
         done.append(case.key)
         return real(case)
 
-    monkeypatch.setattr(bench_sweep, "run_case", interrupted)
+    monkeypatch.setattr(bench_execution, "run_case", interrupted)
     assert qdframe_main(["bench", *TINY, "--out", str(out)]) == 130
     assert "--resume" in capsys.readouterr().err
     assert sorted(map(_key, _rows(out))) == sorted(done)
     assert len(read_csv(out / "results.csv")) == 2
-    monkeypatch.setattr(bench_sweep, "run_case", real)
+    monkeypatch.setattr(bench_execution, "run_case", real)
     assert qdframe_main(["bench", *TINY, "--out", str(out), "--resume"]) == 0
     rows = _rows(out)
     assert len(rows) == len({_key(r) for r in rows}) == 4
@@ -289,7 +291,7 @@ def test_a_missing_peer_is_a_failed_row_with_the_reason(monkeypatch):
 
 
 def test_quick_suite_plan_sweeps_each_solvers_knob():
-    sweep = bench_sweep.plan("quick", peers=True)
+    sweep = bench_cases.plan("quick", peers=True)
     by_solver = {}
     for case in sweep.cases:
         by_solver.setdefault(case.solver, set()).add(case.knob)
@@ -308,7 +310,7 @@ def test_quick_suite_plan_sweeps_each_solvers_knob():
 
 
 def test_directions_all_runs_every_direction_and_step_qp_backend_to_the_certified_answer():
-    sweep = bench_sweep.plan("quick", directions=["all"])
+    sweep = bench_cases.plan("quick", directions=["all"])
     by_solver = {}
     for case in sweep.cases:
         by_solver.setdefault(case.solver, set()).add(case.knob)
@@ -329,7 +331,7 @@ def test_a_step_qp_backend_row_is_run_and_judged():
                         accuracy=1e-3))
     assert row["status"] == "solved" and row["claim"] == "confirmed" and row["error"] <= 1e-3
     with pytest.raises(Exception, match="qp="):
-        bench_sweep.bench_direction("gauss-newton[qp=nonsense]")
+        bench_cases.bench_direction("gauss-newton[qp=nonsense]")
 
 
 def test_solver_times_counts_the_models_each_solver_reached():
@@ -344,13 +346,13 @@ def test_solver_times_counts_the_models_each_solver_reached():
 
 
 def test_standard_suite_covers_the_issue_list():
-    sweep = bench_sweep.plan("standard", peers=True)
+    sweep = bench_cases.plan("standard", peers=True)
     models = set(sweep.settings["models"])
     assert {"paper-7.1", "paper-7.2", "paper-7.3", "coulomb-rest-to-rest", "sliding-mode-terminal",
             "block-stop-stick", "slide-after-reaching", "two-surface-sliding", "stick-slip-oscillator",
             "pivot-friction-pendulum", "two-block-chain", "relay-oscillator"} <= models
     nosnoc = {c.model for c in sweep.cases if c.peer == "nosnoc"}
-    stated = {name for name in models if bench_peers.Nosnoc().states(bench_sweep.resolve_model(name))}
+    stated = {name for name in models if bench_peers.Nosnoc().states(bench_cases.resolve_model(name))}
     assert nosnoc == stated  # every model it can state
     assert {"block-stop-stick", "stick-slip-oscillator", "two-block-chain", "coulomb-rest-to-rest"} <= nosnoc
     assert max(c.nodes or 0 for c in sweep.cases) == 100001
@@ -374,7 +376,7 @@ def test_the_quick_suite_runs_and_judges_every_row(tmp_path):
     assert qdframe_main(["bench", "run", "--suite", "quick", "--peers", "--out", str(out), "--quiet"]) == 0
     rows = _rows(out)
     assert sorted(map(_key, rows)) == sorted(
-        (c.model, c.direction, c.line_search, c.knob) for c in bench_sweep.plan("quick", peers=True).cases)
+        (c.model, c.direction, c.line_search, c.knob) for c in bench_cases.plan("quick", peers=True).cases)
     for row in rows:
         assert row["claim"] == _expected_claim(row), row["message"]
         if row["error"] is None:  # no reference error: never a success, and the row says why
@@ -402,17 +404,17 @@ def test_the_quick_suite_runs_and_judges_every_row(tmp_path):
 def test_the_time_limit_wrapper_keeps_the_directions_settings():
     """A bench row solves as solve() would: the wrapped direction keeps its continuation ladder."""
     inner = make_direction("gauss-newton")
-    wrapped = bench_sweep._Deadline(inner, 60.0)
+    wrapped = bench_execution._Deadline(inner, 60.0)
     for setting in ("name", "default_line_search", "default_continuation", "coarsest_nodes", "ladder_steps"):
         assert getattr(wrapped, setting) == getattr(inner, setting), setting
 
 
 def test_a_direction_with_an_option_is_checked_before_any_run_and_sweeps_gauss_newtons_knobs():
     with pytest.raises(Exception, match="qp="):
-        bench_sweep.plan("quick", directions=["gauss-newton[qp=nope]"])
+        bench_cases.plan("quick", directions=["gauss-newton[qp=nope]"])
     with pytest.raises(Exception, match=r"NAME\[key=value\]"):
-        bench_sweep.plan("quick", directions=["gauss-newton[qp=osqp"])
+        bench_cases.plan("quick", directions=["gauss-newton[qp=osqp"])
     with pytest.raises(Exception, match="no options"):
-        bench_sweep.plan("quick", directions=["native[qp=osqp]"])
-    sweep = bench_sweep.plan("quick", models=["paper-7.1"], directions=["gauss-newton[qp=osqp]"])
+        bench_cases.plan("quick", directions=["native[qp=osqp]"])
+    sweep = bench_cases.plan("quick", models=["paper-7.1"], directions=["gauss-newton[qp=osqp]"])
     assert {case.knob for case in sweep.cases} == {"N=11", "N=41", "N=161", "accuracy=0.001"}

@@ -16,7 +16,7 @@ import pytest
 
 import qdframe
 from qdframe.bench.compare_directions import degenerate_instances
-from qdframe.bench.run import installed_directions
+from qdframe.bench.cases import installed_directions
 from qdframe.cli import main
 from qdframe.directions import qp as qp_module
 from qdframe.directions.native import NativeDirection
