@@ -16,7 +16,7 @@ import argparse
 
 import qdframe
 from qdframe.bench.references import judge
-from qdframe.bench.run import scheme_velocity
+from qdframe.bench.execution import scheme_velocity
 
 
 def main() -> None:

@@ -27,7 +27,7 @@ from .ladder import LADDER, Attempt, FreeInputs
 from .plan import Plan, plan
 from .start import swept_T
 from .unwrap import unwrap
-from .verdict import certify_result
+from .verdict import Refined, certify_result
 
 
 def solve(
@@ -131,11 +131,12 @@ def _verdict(attempt: Attempt) -> tuple[Attempt, Functional, SolveResult]:
     """The attempt's last trajectory certified (:func:`qdframe.solve.verdict.certify_result`),
     the cost's rounds counted in, summarized."""
     plan, run = attempt.staged, attempt.run
-    functional, result = certify_result(run.functional, run.result, plan.plan, attempt.progress, plan.starts)
+    functional, result, refined = certify_result(run.functional, run.result, plan.plan, attempt.progress,
+                                                 plan.starts)
     if attempt.rounds:
         _penalty_verdict(functional, result, attempt.rounds, plan.target)
     result.iterations = result.history[-1].iteration
-    return attempt, functional, _summarized(plan, run, functional, result)
+    return attempt, functional, _summarized(plan, run, functional, result, refined)
 
 
 def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None, clock: float) -> SolveResult:
@@ -170,14 +171,13 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
                                   f"λ = {weight:.0e}), penalty's part of the estimate {extra:.1e}")
 
 
-def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveResult) -> SolveResult:
+def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveResult, refined: Refined) -> SolveResult:
     """The result's options over the whole solve (grids, iterations per grid, the smallest
     ε and δ reached, the start) and its message where it did not end `solved`."""
     options = plan.options
-    refined = result.options.pop("meshes", [])  # (nodes, iterations) of each mesh an accuracy request solved on
-    shrunk_to = run.shrunk_to + result.options.pop("shrunk_to", [])
-    grids = plan.grids + [count for count, _ in refined]
-    per_grid = run.per_grid + [used for _, used in refined]
+    shrunk_to = run.shrunk_to + list(refined.shrunk_to)
+    grids = plan.grids + [count for count, _ in refined.meshes]
+    per_grid = run.per_grid + [used for _, used in refined.meshes]
     # the smallest ε (and its δ) of the solve's descents: where the paper's method got to
     eps_reached, delta_reached = min(shrunk_to) if shrunk_to else (options.eps, options.delta)
     result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,

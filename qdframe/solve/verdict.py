@@ -25,7 +25,7 @@ COMPANION_ITERATIONS = 100  # the budget of the estimate's solve on the bisected
 
 
 def certify_result(functional: Functional, result: SolveResult, plan: Plan, progress: ProgressCallback | None,
-                   starts: Starts | None = None) -> tuple[Functional, SolveResult]:
+                   starts: Starts | None = None) -> tuple[Functional, SolveResult, "Refined"]:
     """The result with its switch times, its error estimate and its status against the
     plan's target: refining, refined until the estimate meets it (:func:`adaptive.to_accuracy`),
     else on its fixed grid (:func:`adaptive.on_fixed_grid`). `solved` stays only where the
@@ -77,12 +77,21 @@ def certify_result(functional: Functional, result: SolveResult, plan: Plan, prog
         else np.zeros(0)
     note = _status(functional, result, found, target, outcome.note, refining=accuracy is not None) if solved \
         else outcome.note
-    result.options = {**result.options, "estimate_time_s": outcome.seconds, "shrunk_to": shrunk_to}
+    result.options = {**result.options, "estimate_time_s": outcome.seconds}
     if accuracy is not None:
-        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes, "meshes": meshes}
+        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes}
     if note:
         result.remarks.append(note)
-    return functional, result
+    return functional, result, Refined(tuple(meshes), tuple(shrunk_to))
+
+
+@dataclasses.dataclass(frozen=True)
+class Refined:
+    """What the verdict's own descents add to the solve's record: (nodes, iterations) of each
+    mesh a refinement solved on, and the (ε, δ) each of them ended with."""
+
+    meshes: tuple[tuple[int, int], ...] = ()
+    shrunk_to: tuple[tuple[float, float], ...] = ()
 
 
 def _status(functional: Functional, result: SolveResult, found, target: float, note: str, refining: bool) -> str:
