@@ -200,3 +200,22 @@ def test_gauss_newton_solves_paper_71_whatever_the_rounding_of_its_last_qp(nodes
     (which ones depended on x(t_0)'s 1e-15 drift): the QP is retried at 1e-10."""
     result = qdframe.solve("paper-7.1", nodes=nodes, direction="gauss-newton", tol=1e-10, max_iter=10)
     assert result.solved and result.iterations <= 4
+
+
+@pytest.mark.parametrize("hook", ["terminal_cost", "control_bounds", "state_bounds"])
+def test_an_optimal_control_hook_qdframe_would_ignore_is_refused_by_name(hook):
+    """Issue 53: a terminal cost or bounds written on a model were silently dropped (a terminal
+    cost ignored gave `solved` with J = 0); until they are solved, the model is refused naming them."""
+    from qdframe.sets import SetModel
+
+    class Effort(SetModel):
+        state_names = "p v"
+        control_names = "u"
+        default_x0 = (0.0, 0.0)
+
+        def sets(self, p, v, u):
+            return {p: v, v: u}
+
+    setattr(Effort, hook, {"u": (-1.8, 1.8)} if hook.endswith("bounds") else (lambda self, p, v: (p - 2) ** 2))
+    with pytest.raises(qdframe.InputError, match=rf"^Effort\.{hook}: expected no {hook}: .* would ignore it"):
+        Effort()
