@@ -255,7 +255,7 @@ class InclusionModel(ABC):
     # the true T and parameters where they are known (with exact_solution): a result's error
     # vs the known solution then covers them as well as x
     exact_T: ClassVar[float | None] = None
-    exact_parameters: ClassVar[dict[str, float]] = {}
+    exact_parameters: ClassVar[Mapping[str, float] | Sequence[float]] = {}  # {name: value} or values in order
 
     def __init__(
         self,
@@ -290,6 +290,7 @@ class InclusionModel(ABC):
             raise InputError("T", f"a starting guess of the free T inside T_bounds ({self.T_bounds[0]:g}, "
                                   f"{self.T_bounds[1]:g}) (with 0 ≤ lo)", self.T)
         self.parameters = self._parameter_guesses(parameters)
+        self.exact_parameters = self._exact_parameters()
         self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n, free=True)
         if end_values is not None and len(end_values) == n != len(self.end_indices):
             chosen = np.asarray(end_values, dtype=float)
@@ -333,6 +334,21 @@ class InclusionModel(ABC):
             if not lo < guess < hi:
                 raise InputError(f"parameters[{name!r}]", f"a starting guess inside its bounds ({lo:g}, {hi:g})", float(guess))
         return guesses
+
+    def _exact_parameters(self) -> dict[str, float]:
+        """`exact_parameters` as {name: value}, given as a mapping or as q values in
+        `parameter_names` order (like `default_parameters`)."""
+        names, given = tuple(self.parameter_names), type(self).exact_parameters
+        field = f"{type(self).__name__}.exact_parameters"
+        if isinstance(given, Mapping):
+            unknown = [key for key in given if key not in names]
+            if unknown:
+                raise InputError(field, f"names among parameter_names ({', '.join(names) or 'none'})",
+                                 ", ".join(map(str, unknown)))
+            return {name: float(_finite_vector(field, [value], 1)[0]) for name, value in given.items()}
+        if isinstance(given, (str, bytes)) or not isinstance(given, Sequence | np.ndarray):
+            raise InputError(field, "{name: value} or the values in parameter_names order", given)
+        return dict(zip(names, map(float, _finite_vector(field, given, len(names))))) if len(given) else {}
 
     @property
     def n_parameters(self) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import numpy as np
 import pytest
 
@@ -349,3 +350,26 @@ def test_a_period_drawn_towards_zero_says_so():
     result = qdframe.solve(RelayPeriod(T=1e-3))
     assert result.status != "solved" and result.T < 1e-5
     assert "T shrank from the guess 0.001" in result.message and "T_bounds" in result.message
+
+
+@pytest.mark.parametrize("given", [{"mu": 2.0}, (2.0,), [2.0]])
+def test_exact_parameters_are_a_mapping_or_the_values_in_order(given):
+    """Issue 55: `exact_parameters = (0.2,)`, written like `default_parameters`, was ignored
+    without a solution and raised AttributeError after the solve with one."""
+    class Known(BlockFrictionCoefficient):
+        exact_parameters = given
+
+    model = Known()
+    assert model.exact_parameters == {"mu": 2.0}
+    result = qdframe.solve(model)
+    assert result.solved and result.solution_error <= 1e-6
+
+
+@pytest.mark.parametrize("given, field", [({"nu": 2.0}, "nu"), ((2.0, 3.0), "1 comma-separated numbers"),
+                                          ("2.0", "name: value")])
+def test_exact_parameters_of_another_form_are_refused_naming_the_field(given, field):
+    class Known(BlockFrictionCoefficient):
+        exact_parameters = given
+
+    with pytest.raises(InputError, match=rf"Known\.exact_parameters: .*{re.escape(field)}"):
+        Known()
