@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,7 +17,7 @@ from threadpoolctl import ThreadpoolController
 from . import checks
 from .checks import CERTIFY_SHRINK
 from ..directions.base import DirectionSolver
-from ..errors import BackendError, InputError, ModelOutputError
+from ..errors import BackendError, ModelOutputError
 from ..functional import Functional
 from ..line_searches.base import LineSearch
 from .outcome import located, result_of

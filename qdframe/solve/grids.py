@@ -114,36 +114,6 @@ def staged(model: InclusionModel, plan: Plan) -> Staged:
     return Staged(plan, grids, stages, starts)
 
 
-def staged(model: InclusionModel, plan: Plan) -> Staged:
-    """The grids of `plan` on `model`: its first mesh (from the model's motion where the plan
-    says so and the model has one), the continuation ladder below it, a functional each."""
-    starts = Starts(model, simulate=plan.simulate_start)
-    mesh, scheme, continuation = plan.mesh, plan.first_scheme, plan.continuation
-    if plan.from_motion:  # the first mesh: from the model's motion where it has one
-        mesh = starts.mesh(plan.nodes - 1)
-        if mesh is not None:  # the motion has the switches: no implicit-Euler bootstrap nor coarser grids to find them
-            scheme = plan.scheme
-            continuation = "none" if continuation is None else continuation
-    final = Grid(model.T, plan.nodes, scheme) if mesh is None else Grid.from_mesh(mesh_times(mesh, model.T), scheme)
-    solver = plan.direction
-    if continuation is None and starts.motion() is not None:
-        continuation = "none"  # the model's motion sampled on the requested grid starts it: no coarser grids
-    grids = grid_schedule(final.nodes, solver.default_continuation if continuation is None else continuation,
-                          solver.coarsest_nodes, solver.ladder_steps)
-    # the functionals solved in turn: each grid, the first one also with the band if exact and
-    # there is no motion to start from (its selections are the motion's modes, the band's are not)
-    stages = []
-    band = starts.motion() is None
-    for count in grids:
-        grid = final if count == final.nodes else Grid(model.T, count, scheme)
-        functional = Functional(model, grid, signs=plan.signs, selection_scale=plan.selection_scale,
-                                inputs=plan.inputs)
-        if not stages and functional.p and band:
-            stages.append(Functional(model, functional.grid, signs="band"))
-        stages.append(functional)
-    return Staged(plan, grids, stages, starts)
-
-
 @dataclass
 class Run:
     """The descents on a plan's grids: the last functional and result, the history over all
