@@ -101,13 +101,13 @@ def plot_result(
     _trajectories(trajectories, result)
     if inputs is not None:
         _inputs(inputs, result)
-    scheme = result.options.get("scheme", "")
+    scheme = result.descent.scheme
     means = velocities == "means" or (velocities == "auto" and scheme == "trapezoid")
     _velocities(velocity_axes, result, means, model)
     _history(history, result)
     grid = f"{result.nodes} nodes" + (f", {scheme}" if scheme else "")
     count = f"{result.iterations} iteration" + ("" if result.iterations == 1 else "s")
-    found = ([f"T = {result.T:.8g}"] if result.options.get("free_T") else []) + [
+    found = ([f"T = {result.T:.8g}"] if result.T_found else []) + [
         f"{name} = {value:.8g}" for name, value in result.parameters.items()]
     fig.suptitle(f"{result.model}: {result.status} after {count} ({grid})" + (f"; found {', '.join(found)}" if found else ""))
     if path is not None:

@@ -31,6 +31,87 @@ class IterationRecord:
     nodes: int  # the grid of this iterate (grids change under continuation)
 
 
+# ------------------------------------------------------------------ the solve's records
+# What a solve records of how it ran, one frozen record per part (the README's "The command
+# line" and docs/guide.md show them through `SolveResult.options`, their fields in one dict):
+#
+# ================  =============================================  ===============================
+# record            fields                                         made by
+# ================  =============================================  ===============================
+# DescentRecord     scheme, max_iter, tol, delta, eps, gamma_max,  each descent (qdframe.descent);
+#                   residual_tol, stationary_point                 the solve: ε, δ the least reached
+# VerdictRecord     estimate_time_s, accuracy, max_nodes           the verdict (qdframe.solve.verdict)
+# PenaltyRecord     penalty, optimality_gap, penalty_rounds        a cost's rounds (qdframe.solve.optimum)
+# GridsRecord       start, grids, iterations_per_grid, signs,      the solve (qdframe.solve.solving)
+#                   selection_scale, inputs, uniform
+# UnknownsRecord    free_T, T_guess, T_start, parameters_start     T or p unknown (qdframe.solve.unwrap)
+# ================  =============================================  ===============================
+
+
+@dataclass(frozen=True)
+class DescentRecord:
+    """How the descents ran: the scheme and the options of the last (ε and δ, over a whole
+    solve, the smallest any descent reached; max_iter the solve's budget), and whether its stop
+    is a stationary point of the objective (a higher penalty can move it: qdframe.solve.optimum)."""
+
+    scheme: str
+    max_iter: int
+    tol: float
+    delta: float
+    eps: float
+    gamma_max: float
+    residual_tol: float
+    stationary_point: bool = False
+
+
+@dataclass(frozen=True)
+class VerdictRecord:
+    """The verdict's own cost and target: seconds spent making estimates (their solves and
+    replays), and under refinement the accuracy asked and the cap on points."""
+
+    estimate_time_s: float
+    accuracy: float | None = None
+    max_nodes: int | None = None
+
+
+@dataclass(frozen=True)
+class PenaltyRecord:
+    """A cost whose least value is not 0: the last penalty λ, the optimality gap 2λ·I, and
+    (λ, iterations) of each round."""
+
+    penalty: float
+    optimality_gap: float
+    penalty_rounds: tuple[tuple[float, int], ...]
+
+
+@dataclass(frozen=True)
+class GridsRecord:
+    """The grids of the whole solve: the first start ("model", "simulated", "line"), each grid's
+    points and iterations (continuation, then refinement), and how the last was discretized."""
+
+    start: str
+    grids: tuple[int, ...]
+    iterations_per_grid: tuple[int, ...]
+    signs: str
+    selection_scale: float
+    inputs: str
+    uniform: bool
+
+
+@dataclass(frozen=True)
+class UnknownsRecord:
+    """T or parameters found with x: whether T was free, the user's guess of T and the one the
+    solve started from (its sweep), and the parameters' starting guesses."""
+
+    free_T: bool
+    T_guess: float
+    T_start: float
+    parameters_start: dict[str, float]
+
+
+RECORDS = ("descent", "verdict", "penalty", "grids", "unknowns")  # SolveResult's records, in options' order
+
+
 @dataclass
 class SolveResult:
     """Everything a solve produced; `status` says honestly how it ended."""
@@ -62,7 +143,7 @@ class SolveResult:
     selection_names: list[str]
     state_names: tuple[str, ...]
     set_bounds: list[Any]
-    options: dict[str, Any]
+    descent: DescentRecord
     history: list[IterationRecord] = field(default_factory=list)
     control_names: tuple[str, ...] = ()  # the model's names of the columns of u
     checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.descent.checks
@@ -73,11 +154,32 @@ class SolveResult:
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
     parameters: dict[str, float] = field(default_factory=dict)  # the unknown parameters found (qdframe.unknowns)
     remarks: list[str] = field(default_factory=list)  # what is said of the run after its reason: checks, diagnosis, estimate
+    verdict: VerdictRecord | None = None  # the records of the solve (module comment): None where a part did not run
+    penalty: PenaltyRecord | None = None
+    grids: GridsRecord | None = None
+    unknowns: UnknownsRecord | None = None
+
+    @property
+    def options(self) -> dict[str, Any]:
+        """Every record's fields in one dict (a copy: the records are the result's own), in the
+        order descent, verdict, penalty, grids, unknowns; sequences as lists."""
+        out: dict[str, Any] = {}
+        for name in RECORDS:
+            record = getattr(self, name)
+            if record is not None:
+                out.update({key: list(value) if isinstance(value, tuple) else value
+                            for key, value in asdict(record).items()})
+        return out
 
     @property
     def message(self) -> str:
         """The reason and the remarks in one line, joined by "; "."""
         return "; ".join(part for part in (self.reason, *self.remarks) if part)
+
+    @property
+    def T_found(self) -> bool:
+        """Whether T was free and found with x."""
+        return bool(self.unknowns is not None and self.unknowns.free_T)
 
     @property
     def solved(self) -> bool:
@@ -102,7 +204,7 @@ class SolveResult:
         """A few lines for a notebook: how it ended, on what grid, I and the residuals."""
         lines = [
             f"SolveResult {self.model}: {self.status}, {self.iterations} iterations, {self.nodes} nodes "
-            f"(T = {self.T:.10g}{', found' if self.options.get('free_T') else ''}), {self.direction} / "
+            f"(T = {self.T:.10g}{', found' if self.T_found else ''}), {self.direction} / "
             f"{self.line_search}, {self.wall_time_s:.3g} s",
             f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.3e}" if self.cost is not None else ""),
             "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
@@ -147,7 +249,7 @@ class SolveResult:
         index = pd.Index(np.asarray(self.t, dtype=float), name="t")
         frame = pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
         frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),
-                            "free_T": int(bool(self.options.get("free_T"))),
+                            "free_T": int(self.T_found),
                             **{f"parameter_{name}": float(value) for name, value in self.parameters.items()}})
         return frame
 
@@ -172,7 +274,7 @@ class SolveResult:
         attrs: dict[str, Any] = {"model": self.model, "direction": self.direction, "line_search": self.line_search,
                                  "status": self.status, "message": self.message, "nodes": int(self.nodes),
                                  "T": float(self.T), "iterations": int(self.iterations), "I": float(self.I),
-                                 "objective": float(self.objective), "free_T": int(bool(self.options.get("free_T")))}
+                                 "objective": float(self.objective), "free_T": int(self.T_found)}
         attrs.update({f"parameter_{name}": float(value) for name, value in self.parameters.items()})
         attrs.update({f"residual_{name}": value for name, value in self.residuals().items()})
         if self.solution_error is not None:
@@ -182,7 +284,12 @@ class SolveResult:
         return xr.Dataset(variables, coords=coords, attrs=attrs)
 
     def to_dict(self) -> dict[str, Any]:
-        data = {k: v for k, v in self.__dict__.items() if k != "history"}
+        data = {}
+        for key, value in self.__dict__.items():  # the records as one `options` dict, where it always stood
+            if key == "descent":
+                data["options"] = self.options
+            elif key not in RECORDS and key != "history":
+                data[key] = value
         data["converged"] = self.converged  # a property: the discrete problem solved
         data["message"] = self.message  # a property: the reason and the remarks
         data["history"] = [asdict(record) for record in self.history]
@@ -201,11 +308,11 @@ class SolveResult:
             ("model", self.model),
             ("status", f"{self.status}" + (f" ({self.message})" if self.message else "")),
             ("direction / line search", f"{self.direction} / {self.line_search}"),
-            ("nodes, T", f"{self.nodes}, {self.T:.10g}" + (" (found)" if self.options.get("free_T") else "")
-             + _grids(self.options.get("grids", []), self.nodes)
-             + ("  (nonuniform mesh)" if self.options.get("uniform") is False else "")),
-            ("scheme, signs, inputs", f"{self.options.get('scheme', '—')}, {self.options.get('signs', '—')}, "
-                                      f"{self.options.get('inputs', '—')}"),
+            ("nodes, T", f"{self.nodes}, {self.T:.10g}" + (" (found)" if self.T_found else "")
+             + _grids(list(self.grids.grids) if self.grids else [], self.nodes)
+             + ("  (nonuniform mesh)" if self.grids and self.grids.uniform is False else "")),
+            ("scheme, signs, inputs", f"{self.descent.scheme}, {self.grids.signs if self.grids else '—'}, "
+                                      f"{self.grids.inputs if self.grids else '—'}"),
             ("iterations", str(self.iterations)),
             ("wall time", f"{self.wall_time_s:.3f} s"),
             ("objective", f"{self.objective:.3e}"),

@@ -58,7 +58,7 @@ def test_a_cost_with_minimum_zero_takes_one_round():
 
 def _result(status: Status, I: float, checks: dict | None = None, stationary: bool = False) -> SimpleNamespace:
     """A stand-in with what :func:`optimum.raise_by` reads of a round's result."""
-    return SimpleNamespace(status=status, I=I, checks=checks or {}, options={"stationary_point": stationary})
+    return SimpleNamespace(status=status, I=I, checks=checks or {}, descent=SimpleNamespace(stationary_point=stationary))
 
 
 def test_raise_by_follows_the_first_order_rates():

@@ -110,3 +110,28 @@ def test_a_missing_extra_says_how_to_install_it(paper71, monkeypatch, method, mo
     monkeypatch.setitem(sys.modules, module, None)  # import fails as if not installed
     with pytest.raises(ImportError, match=rf"^SolveResult\.{method}\(\) needs {module}: pip install 'qdframe\[frames\]'$"):
         getattr(paper71, method)()
+
+
+def test_a_results_records_are_typed_frozen_and_its_options_their_fields():
+    """Issue 54: SolveResult.options was a free dict written by five modules (and a side
+    channel); it is now the fields of frozen records, in one dict, in the JSON too."""
+    import dataclasses
+    import json
+
+    import qdframe
+    from qdframe.result import DescentRecord, GridsRecord, UnknownsRecord, VerdictRecord
+
+    result = qdframe.solve("block-friction-coefficient")
+    assert isinstance(result.descent, DescentRecord) and isinstance(result.grids, GridsRecord)
+    assert isinstance(result.verdict, VerdictRecord) and isinstance(result.unknowns, UnknownsRecord)
+    assert result.penalty is None  # no cost
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        result.grids.start = "line"  # type: ignore[misc]
+    fields = {}
+    for record in (result.descent, result.verdict, result.grids, result.unknowns):
+        fields.update(dataclasses.asdict(record))
+    assert result.options.keys() == fields.keys() and result.options["grids"] == list(result.grids.grids)
+    assert result.options["start"] == result.grids.start and not result.T_found
+    assert json.loads(result.to_json())["options"] == json.loads(json.dumps(result.options))
+    result.options["start"] = "changed"  # a copy: the records are the result's own
+    assert result.grids.start != "changed"

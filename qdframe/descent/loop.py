@@ -233,7 +233,7 @@ class _Descent:
                            dataclasses.replace(options, eps=self.eps, delta=self.delta), self.xi, status, message,
                            remarks, self.history, time.perf_counter() - self.clock)
         # a stationary point of the objective: a higher penalty can move it (qdframe.solve.optimum)
-        result.options["stationary_point"] = self.optimal
+        result.descent = dataclasses.replace(result.descent, stationary_point=self.optimal)
         return result
 
 

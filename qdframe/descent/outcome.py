@@ -13,7 +13,7 @@ from .diagnosis import unmet_conditions
 from ..errors import ModelOutputError
 from ..functional import Functional
 from ..registry import plugin_code
-from ..result import IterationRecord, SolveResult
+from ..result import DescentRecord, IterationRecord, SolveResult
 from .options import DescentOptions
 from ..status import Status
 
@@ -117,15 +117,8 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
         state_names=tuple(model.state_names),
         control_names=tuple(model.control_names),
         set_bounds=bounds,
-        options={
-            "scheme": functional.grid.scheme.name,
-            "max_iter": options.max_iter,
-            "tol": options.tol,
-            "delta": options.delta,
-            "eps": options.eps,
-            "gamma_max": options.gamma_max,
-            "residual_tol": options.residual_tol,
-        },
+        descent=DescentRecord(functional.grid.scheme.name, options.max_iter, options.tol, options.delta, options.eps,
+                              options.gamma_max, options.residual_tol),
         history=list(history),
         checks={check.name: {"value": check.value, "tol": check.tol} for check in found},
         binding_check=checks.binding(found),

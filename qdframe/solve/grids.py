@@ -169,7 +169,7 @@ def run_grids(plan: Staged, progress: ProgressCallback | None) -> Run:
         stage = dataclasses.replace(stage, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, plan.solver, plan.search, stage, shown, start, near_solution=near)
-        shrunk_to.append((result.options["eps"], result.options["delta"]))
+        shrunk_to.append((result.descent.eps, result.descent.delta))
         history += [shift(record) for record in result.history]
         per_grid[index] += result.iterations
         earlier = [result] + ([iterate_view(functional, start)] if from_stage and result.iterations else [])

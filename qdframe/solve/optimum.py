@@ -104,7 +104,7 @@ def raise_by(result: SolveResult, weight: float, target: float, tol: float) -> f
     or at a stationary point of 𝒥 + λ·I, or the gap, I and every check are within their
     tolerances already)."""
     if not (result.status == Status.SOLVED
-            or (result.status == Status.STATIONARY and result.options.get("stationary_point"))):
+            or (result.status == Status.STATIONARY and result.descent.stationary_point)):
         return None  # the descent's own limit (a fixed ε, the budget) ended it, not λ
     wanted = gap(result, weight) / (GAP_FRACTION * target)
     if result.status == Status.SOLVED and wanted <= 1.0:

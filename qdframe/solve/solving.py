@@ -18,7 +18,7 @@ from ..functional import Functional
 from ..line_searches.base import LineSearch
 from ..model import InclusionModel
 from ..registry import load_model
-from ..result import SolveResult
+from ..result import GridsRecord, PenaltyRecord, SolveResult
 from ..schemes import Scheme
 from ..status import Status
 from . import optimum
@@ -156,8 +156,7 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
     and `solved` withdrawn where the sum passes the target."""
     weight = rounds[-1].weight
     extra = optimum.penalty_error(rounds)
-    result.options = {**result.options, "penalty": weight, "optimality_gap": optimum.gap(result, weight),
-                      "penalty_rounds": [(r.weight, r.iterations) for r in rounds]}
+    result.penalty = PenaltyRecord(weight, optimum.gap(result, weight), tuple((r.weight, r.iterations) for r in rounds))
     if result.error_estimate is not None:
         result.error_estimate += extra
     if result.status == Status.SOLVED:
@@ -180,11 +179,10 @@ def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveRes
     per_grid = run.per_grid + [used for _, used in refined.meshes]
     # the smallest ε (and its δ) of the solve's descents: where the paper's method got to
     eps_reached, delta_reached = min(shrunk_to) if shrunk_to else (options.eps, options.delta)
-    result.options = {**result.options, "eps": eps_reached, "delta": delta_reached, "max_iter": options.max_iter,
-                      "start": run.first_start, "grids": grids, "iterations_per_grid": per_grid,
-                      "scheme": functional.grid.scheme.name, "signs": plan.signs,
-                      "selection_scale": plan.selection_scale, "inputs": "held" if functional.held else "free",
-                      "uniform": functional.grid.uniform}
+    result.descent = dataclasses.replace(result.descent, eps=eps_reached, delta=delta_reached,
+                                         max_iter=options.max_iter, scheme=functional.grid.scheme.name)
+    result.grids = GridsRecord(run.first_start, tuple(grids), tuple(per_grid), plan.signs, plan.selection_scale,
+                               "held" if functional.held else "free", functional.grid.uniform)
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
     if result.status == Status.MAX_ITER:  # the whole budget, over all grids
         result.reason = f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..model import InclusionModel
-from ..result import SolveResult
+from ..result import SolveResult, UnknownsRecord
 from ..status import Status
 from ..unknowns import Unknowns
 
@@ -49,8 +49,8 @@ def unwrap(wrapper: Unknowns, result: SolveResult) -> SolveResult:
         result, T=T, t=t, x=x, z=result.z[:, :n] / factor, state_names=tuple(wrapper.inner.state_names),
         error_estimate=estimate, switch_times=np.asarray(result.switch_times, float) * factor, parameters=parameters,
         set_bounds=set_bounds, solution_error=_solution_error(wrapper.inner, t, x, T, parameters),
-        options={**result.options, "free_T": wrapper.scaled, "T_guess": wrapper.T_guess, "T_start": wrapper.T0,
-                 "parameters_start": dict(zip(wrapper.inner.parameter_names, map(float, wrapper.inner.parameters)))},
+        unknowns=UnknownsRecord(wrapper.scaled, wrapper.T_guess, wrapper.T0,
+                                dict(zip(wrapper.inner.parameter_names, map(float, wrapper.inner.parameters)))),
     )
     if estimate is not None and out.status == Status.SOLVED and out.accuracy is not None:
         bound = out.accuracy * max(1.0, float(np.max(np.abs(out.x))))

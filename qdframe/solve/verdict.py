@@ -16,7 +16,7 @@ from ..certificates import switches
 from .continuation import interpolate
 from ..descent.loop import ProgressCallback, descend
 from ..functional import Functional
-from ..result import SolveResult
+from ..result import SolveResult, VerdictRecord
 from .plan import Plan
 from .start import MODEL, Starts
 from ..status import Status
@@ -56,7 +56,7 @@ def certify_result(functional: Functional, result: SolveResult, plan: Plan, prog
                       stage, shown, start, near_solution=near)
         if own:
             meshes.append((target_functional.grid.nodes, out.iterations))
-            shrunk_to.append((out.options["eps"], out.options["delta"]))
+            shrunk_to.append((out.descent.eps, out.descent.delta))
             elapsed = history[-1].time_s
             history.extend(dataclasses.replace(r, iteration=r.iteration + used, time_s=r.time_s + elapsed)
                            for r in out.history)
@@ -77,9 +77,7 @@ def certify_result(functional: Functional, result: SolveResult, plan: Plan, prog
         else np.zeros(0)
     note = _status(functional, result, found, target, outcome.note, refining=accuracy is not None) if solved \
         else outcome.note
-    result.options = {**result.options, "estimate_time_s": outcome.seconds}
-    if accuracy is not None:
-        result.options = {**result.options, "accuracy": accuracy, "max_nodes": max_nodes}
+    result.verdict = VerdictRecord(outcome.seconds, *((accuracy, max_nodes) if accuracy is not None else ()))
     if note:
         result.remarks.append(note)
     return functional, result, Refined(tuple(meshes), tuple(shrunk_to))
