@@ -339,16 +339,16 @@ class InclusionModel(ABC):
         """`exact_parameters` as {name: value}, given as a mapping or as q values in
         `parameter_names` order (like `default_parameters`)."""
         names, given = tuple(self.parameter_names), type(self).exact_parameters
-        field = f"{type(self).__name__}.exact_parameters"
+        where = f"{type(self).__name__}.exact_parameters"
         if isinstance(given, Mapping):
             unknown = [key for key in given if key not in names]
             if unknown:
-                raise InputError(field, f"names among parameter_names ({', '.join(names) or 'none'})",
+                raise InputError(where, f"names among parameter_names ({', '.join(names) or 'none'})",
                                  ", ".join(map(str, unknown)))
-            return {name: float(_finite_vector(field, [value], 1)[0]) for name, value in given.items()}
+            return {name: float(_finite_vector(where, [value], 1)[0]) for name, value in given.items()}
         if isinstance(given, (str, bytes)) or not isinstance(given, Sequence | np.ndarray):
-            raise InputError(field, "{name: value} or the values in parameter_names order", given)
-        return dict(zip(names, map(float, _finite_vector(field, given, len(names))))) if len(given) else {}
+            raise InputError(where, "{name: value} or the values in parameter_names order", given)
+        return dict(zip(names, map(float, _finite_vector(where, given, len(names))))) if len(given) else {}
 
     @property
     def n_parameters(self) -> int:
