@@ -355,7 +355,8 @@ def choose_mode(fields: Fields, x: np.ndarray, current: tuple[int, ...] | None =
     return tuple(mode)
 
 
-ENUMERATED = 3**6  # a group of switches with at most this many modes is enumerated
+ENUMERATED_SWITCHES = 6  # a group of scalar switches with at most 3^this modes is enumerated …
+ENUMERATED = 3**ENUMERATED_SWITCHES  # … and as many of a larger group's least sure ones around its LCP mode
 AMBIGUOUS = 1e-6  # a margin of a box-LCP mode below this (λ units): the switch's other modes are tried too
 
 
@@ -431,18 +432,19 @@ class _Rule:
         neighbours' in its ambiguous switches."""
         if math.prod(len(self.options(i)) for i in group) <= ENUMERATED or any(i in self.ball_of for i in group):
             return self.enumerate(group)
-        lam = self._solved(group)
+        A, b = self._system(group)
+        lam = self._solved(group, A, b)
         if lam is None:
             raise FilippovError(f"no Filippov mode found for the {len(group)} coupled switches {group} "
                                 "(Lemke's method ended on a ray: the coupling is not dissipative)")
-        part = dict(zip(group, labels(*self._system(group), lam)))
+        part = dict(zip(group, labels(A, b, lam)))
         if self.released is not None and self.released[0] in part:
             part[self.released[0]] = self.released[1]
         mode = list(self.fixed)
         self.put(mode, part)
         margins = _margins(self.fields, tuple(mode), group, self.balls, self.aims)
         order = np.argsort(margins, kind="stable")  # the least sure first
-        unsure = {group[j] for j in order[: round(math.log(ENUMERATED, 3))] if margins[j] < AMBIGUOUS}
+        unsure = {group[j] for j in order[:ENUMERATED_SWITCHES] if margins[j] < AMBIGUOUS}
         return self.enumerate(group, part, sorted(unsure | ({self.crossed} & set(group))))
 
     def _system(self, group: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -455,8 +457,8 @@ class _Rule:
         A = fields.ds[group] @ fields.B[:, group]
         return A, fields.ds[group] @ (fields.g + fields.B @ lam)
 
-    def _solved(self, group: list[int]) -> np.ndarray | None:
-        A, b = self._system(group)
+    def _solved(self, group: list[int], A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+        """The box LCP's λ over the group (a released switch held at its side)."""
         if self.released is not None and self.released[0] in group:  # its side is given: λ_i = ±1
             i = group.index(self.released[0])
             keep = [j for j in range(len(group)) if j != i]
