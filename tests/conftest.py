@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import re
+
 import numpy as np
 import pytest
 
@@ -32,3 +35,52 @@ def check_certified(result, residual_tol: float = RESIDUAL_TOL) -> None:
 def certified():
     """:func:`check_certified`, for tests in any folder."""
     return check_certified
+
+
+# ---------------------------------------------------------------- skips of required modules fail in CI
+# .ci/run exports QDFRAME_REQUIRE_ALL=1: there every test extra is installed (pip install -e
+# '.[test,all]'), so a test skipped because one of them does not import is a test that never ran —
+# a broken install, not an optional dependency. With the variable set, such a skip is a failure
+# naming the module; skips for anything else (a module outside these extras, a plain pytest.skip)
+# stay skips. The import names of the distributions in pyproject.toml's `test` and `all` extras
+# (casadi: nosnoc's own dependency); tests/test_required_skips.py checks that this set covers them.
+REQUIRED_MODULES = frozenset({
+    "pytest", "xdist", "hypothesis",                    # test
+    "osqp", "clarabel", "qpsolvers", "daqp", "proxsuite", "cvxpy",
+    "nosnoc", "casadi", "dask", "distributed", "pandas", "xarray",  # all
+})
+_MISSING = re.compile(r"(?:could not import|No module named|import of) '?([A-Za-z_][\w.]*)'?")
+
+
+def _required_but_missing(reason: str) -> str | None:
+    """The required module a skip's reason says did not import, or None."""
+    for name in _MISSING.findall(reason):
+        if name.split(".")[0] in REQUIRED_MODULES:
+            return name.split(".")[0]
+    return None
+
+
+def _fail_required_skip(report) -> None:
+    if not report.skipped or os.environ.get("QDFRAME_REQUIRE_ALL") != "1":
+        return
+    if not (isinstance(report.longrepr, tuple) and len(report.longrepr) == 3):
+        return  # xfail and the like: not a skip with a reason
+    reason = str(report.longrepr[2]).removeprefix("Skipped: ")
+    module = _required_but_missing(reason)
+    if module is not None:
+        report.outcome = "failed"
+        report.longrepr = (f"required module '{module}' did not import (QDFRAME_REQUIRE_ALL=1: the test extras "
+                           f"are installed here, so this skip is a failure): {reason}")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = (yield).get_result()
+    _fail_required_skip(report)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    report = (yield).get_result()  # a module-level importorskip skips the module at collection
+    if report is not None:
+        _fail_required_skip(report)
