@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import itertools
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from hypothesis.configuration import set_hypothesis_home_dir
 from hypothesis.extra.numpy import arrays
+
+# the same examples on every run and every machine (a seed from each test's own code), and no
+# example database or constants cache written into the repository (Hypothesis' home is a temp dir)
+set_hypothesis_home_dir(str(Path(tempfile.gettempdir()) / "qdframe-hypothesis"))
+PROPERTY = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True, database=None)
 
 from qdframe.directions import minnorm
 from qdframe.directions.minnorm import min_norm_point
@@ -441,7 +449,7 @@ def vertices(center, generators, mask):
             yield center + sum((generators[g, p] for g, p in enumerate(choice)), np.zeros_like(center))
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150, **PROPERTY)
 @given(instances())
 def test_property_feasible_optimal_and_no_longer_than_any_vertex(instance):
     center, generators, mask = instance
@@ -453,7 +461,7 @@ def test_property_feasible_optimal_and_no_longer_than_any_vertex(instance):
         assert np.linalg.norm(points[b]) <= shortest + 1e-12 * scale[b]
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, **PROPERTY)
 @given(instances(max_rows=2))
 def test_property_matches_the_reference(instance):
     center, generators, mask = instance
@@ -461,7 +469,7 @@ def test_property_matches_the_reference(instance):
     assert_matches_reference(center, generators, mask, points)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=60, **PROPERTY)
 @given(instances(max_rows=2))
 def test_property_fallback_is_optimal_too(instance):
     center, generators, mask = instance
@@ -506,3 +514,17 @@ def test_a_direction_entry_at_rounding_on_a_kink_is_zero_and_the_direction_desce
     assert direction.step[0, 0] == 0.0
     assert np.allclose(direction.step[0, 1:], -center[0, 1:], rtol=1e-12, atol=0)
     assert direction.slope < 0 and direction.slope == pytest.approx(-0.05 * np.sum(direction.step**2), rel=1e-9)
+
+
+def test_the_property_tests_are_derandomized_and_write_nothing():
+    """Issue 56: an unseeded run drew other examples on every machine and wrote `.hypothesis/`
+    into the repository root."""
+    tests = [value for value in globals().values() if hasattr(value, "hypothesis")]
+    assert len(tests) == 3
+    for test in tests:
+        chosen = test._hypothesis_internal_use_settings
+        assert chosen.derandomize and chosen.database is None, test.__name__
+    from hypothesis.configuration import storage_directory
+
+    root = Path(__file__).resolve().parents[2]
+    assert root not in Path(storage_directory("constants").path).resolve().parents

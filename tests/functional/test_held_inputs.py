@@ -137,8 +137,7 @@ def test_default_call_on_a_bounded_input_meets_its_target_on_few_points():
     rule = SchemeRule(make_scheme("radau-iia"), t, np.arange(0, t.size, 2))
     verdict = judge(model, t, np.asarray(result.x), np.asarray(result.z), None, result.switch_times,
                     velocity=rule, selections=np.asarray(result.selections))
-    assert verdict.error <= 1e-6
-    assert verdict.error <= result.error_estimate * 1.5
+    assert verdict.error <= result.error_estimate <= 1e-6  # the estimate bounds the error: no factor on it
 
 
 def test_inputs_must_be_held_or_free():
