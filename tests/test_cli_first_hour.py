@@ -3,9 +3,13 @@ direction options, only backends that work, honest summaries."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
+import qdframe
 from qdframe.cli import main
+from qdframe.directions.gauss_newton import GaussNewton
 from qdframe.registry import make_direction
 from qdframe.directions.base import with_options
 from qdframe.errors import InputError
@@ -37,8 +41,19 @@ def test_option_errors_name_the_field_and_the_form(options, expected):
     assert expected in str(info.value)
 
 
-def test_option_on_the_command_line(capsys):
-    assert main(["solve", "paper-7.1", "--nodes", "11", "--option", "mu=1e-6", "--quiet"]) == 0
+def test_option_on_the_command_line(tmp_path, capsys):
+    """`--option mu=1` reaches the solver: the run's iterates are those of the direction built
+    by hand with mu = 1 (heavy Levenberg–Marquardt damping: shorter first steps, 6 iterations
+    where the default mu = 1e-10 takes 2), not the default's."""
+    out = tmp_path / "damped.json"
+    assert main(["solve", "paper-7.1", "--nodes", "11", "--option", "mu=1", "--json", str(out), "--quiet"]) == 0
+    damped = json.loads(out.read_text())
+    by_hand = qdframe.solve("paper-7.1", nodes=11, direction=GaussNewton(mu=1.0))
+    default = qdframe.solve("paper-7.1", nodes=11)
+    assert damped["direction"] == "gauss-newton"
+    assert [h["objective"] for h in damped["history"]] == [h.objective for h in by_hand.history]
+    assert damped["iterations"] == by_hand.iterations > default.iterations
+    assert damped["history"][1]["objective"] > 2 * default.history[1].objective  # the damped first step gains less
     assert main(["solve", "paper-7.1", "--option", "mu"]) == 2
     assert "KEY=VALUE" in capsys.readouterr().err
     assert main(["solve", "paper-7.1", "--option", "bad=1"]) == 2
@@ -61,8 +76,6 @@ def test_the_summary_says_when_a_solve_ended_on_a_coarser_grid():
 
 
 def test_json_to_stdout_keeps_stdout_clean(capsys):
-    import json
-
     assert main(["solve", "paper-7.2", "--nodes", "11", "--json", "-"]) == 0
     out, err = capsys.readouterr()
     assert json.loads(out)["model"] == "paper-7.2"  # stdout is the JSON alone
