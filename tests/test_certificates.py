@@ -196,19 +196,31 @@ def test_the_relay_oscillator_is_solved_by_default():
     assert result.solved and result.solution_error <= result.error_estimate <= 1e-6
 
 
-def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line():
-    """paper-7.3 on 11 implicit-Euler points: from its motion under u ≡ 0 and then from the
-    paper's first approximation (x ≡ 0) gauss-newton stops at a local minimum of I; the
-    grids solved again from the straight line
-    between the given ends (x(0) held, x3 drawn to x3(T) = 0) solve the discrete problem, and
-    the result says so. Its history runs on from the first run's."""
+def test_a_stall_from_the_models_start_is_solved_again_from_the_straight_line(monkeypatch):
+    """Where gauss-newton stops at a local minimum of I from the model's motion and then from
+    the model's own start, the grids are solved again from the straight line between the given
+    ends (x(0) held, x3 drawn to x3(T) = 0), and the result says so; its history runs on from
+    the first runs', its budget is the whole solve's. paper-7.3 on 11 implicit-Euler points
+    stalls from both starts on the docs' machine, but whether a start stalls moves with the
+    CPU's rounding: the stall is made certain here (every run not from the line counts as
+    stalled), and the unforced solve is held to what holds on any CPU (next test)."""
+    from qdframe.solve import ladder
+
+    real = ladder.stalled
+    monkeypatch.setattr(ladder, "stalled", lambda plan, run: run.first_start != "straight line" or real(plan, run))
     result = qdframe.solve("paper-7.3", nodes=11, estimate=False)
     assert result.options["start"] == "straight line" and result.I <= 1e-20
     assert result.options["max_iter"] == 500  # the whole solve's budget, not what the last start had left
     assert all(check["value"] <= check["tol"] for check in result.checks.values())
     iterations = [record.iteration for record in result.history]
     assert iterations == sorted(iterations) and iterations[-1] == result.iterations
-    assert "straight line" not in qdframe.solve("paper-7.3", nodes=21, estimate=False).options["start"]  # no stall
+
+
+def test_paper_73_on_11_points_is_solved_from_one_of_its_starts():
+    """Unforced, from whichever start the ladder ends on (which depends on rounding): the discrete problem solved."""
+    result = qdframe.solve("paper-7.3", nodes=11, estimate=False)
+    assert result.options["start"] in {"simulated", "model", "straight line"} and result.I <= 1e-20
+    assert all(check["value"] <= check["tol"] for check in result.checks.values())
 
 
 def test_a_model_with_controls_starts_from_its_motion_under_its_first_controls():

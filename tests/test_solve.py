@@ -31,18 +31,21 @@ def test_paper_71_reaches_the_papers_accuracy_within_37_iterations(nodes):
     assert reached is not None and reached <= 37
     assert result.objective <= 1e-3
     assert result.boundary_error <= 5e-3
-    # near the known solution x1 = 0, x2 = t
-    assert result.solution_error <= 1e-2
+    # near the known solution x1 = 0, x2 = t: docs/paper.md gives max |x − (0, t)| = 3.9e-4 (3.8e-4 at N = 11)
+    assert result.solution_error < 3.95e-4
     assert result.status in {"solved", "stationary"}
 
 
 def test_paper_71_on_the_fine_grid_alone_still_reaches_the_papers_accuracy():
-    """Without the coarse start the count grows from N = 11 to N = 101 (28 against 38,
-    measured), which is why the paper's method starts coarse by default."""
+    """Without the coarse start the count grows (docs/paper.md: 29 from the 11-node start, 39
+    on 101 nodes alone), which is why the paper's method starts coarse by default. The
+    property, not the counts (they move with the CPU's rounding): both reach the paper's
+    accuracy, the fine grid alone later than the default grids."""
     single = qdframe.solve("paper-7.1", nodes=101, direction="native", continuation="none")
     assert {r.nodes for r in single.history} == {101} and single.options["grids"] == [101]
     reached = first(single, papers_accuracy)
-    assert reached is not None and reached <= 45
+    coarse_first = first(qdframe.solve("paper-7.1", nodes=101, direction="native"), papers_accuracy)
+    assert reached is not None and coarse_first is not None and reached > coarse_first
 
 
 @pytest.mark.parametrize("nodes", [11, 101, 1001])
@@ -52,8 +55,9 @@ def test_paper_72_reaches_the_papers_accuracy_within_15_iterations(nodes):
     # the paper's boundary measure is χ's |x0 + ∫z − xT|; result.boundary_error reads x(T),
     # which also carries the consistency error at T (about 7e-3 here after 15 iterations)
     assert np.sqrt(2 * result.terms["chi"]) <= 5e-3
-    # solutions are not unique (any z in F with the right mean): check z stays in F
-    assert result.inclusion_residual <= 1e-2
+    # solutions are not unique (any z in F with the right mean): z stays in F (docs/paper.md's
+    # table: inclusion residual 0.0e+00 at every N)
+    assert result.inclusion_residual <= 1e-14
 
 
 @pytest.mark.parametrize("line_search", ["golden", "armijo"])

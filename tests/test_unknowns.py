@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+
 import numpy as np
 import pytest
 
@@ -227,8 +228,10 @@ def test_command_line_free_T_and_parameter(tmp_path, capsys):
     assert main(["solve", "relay-oscillator", "--free-T", "--T", "5", "--periodic", "x1,x2", "--json", str(out),
                  "--quiet"]) == 0
     assert abs(json.loads(out.read_text())["T"] - 4 * np.sqrt(2)) <= 1e-6
-    assert main(["solve", "block-friction-coefficient", "--parameter", "mu=4"]) == 0
-    assert "mu = 2" in capsys.readouterr().out
+    found = tmp_path / "mu.json"
+    assert main(["solve", "block-friction-coefficient", "--parameter", "mu=4", "--json", str(found)]) == 0
+    assert re.search(r"^parameters\s+mu = 2\s*$", capsys.readouterr().out, flags=re.M)  # not 2.5, not 25
+    assert abs(json.loads(found.read_text())["parameters"]["mu"] - 2.0) <= 1e-6  # the exact μ = 2
     assert main(["solve", "block-stopping-time", "--fixed-T", "--T", "0.5", "--quiet"]) == 0
     assert main(["solve", "block-friction-coefficient", "--parameter", "mu"]) == 2
     assert "NAME=GUESS" in capsys.readouterr().err

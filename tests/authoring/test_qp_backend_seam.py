@@ -42,9 +42,11 @@ def test_the_guides_qp_backend_gives_natives_iterates():
     assert issubclass(ScipyQP, QPDirection)
     ours = qdframe.solve("paper-7.1", nodes=11, direction=ScipyQP())
     native = qdframe.solve("paper-7.1", nodes=11, direction="native")
-    assert (ours.status, ours.iterations) == (native.status, native.iterations) == ("stationary", 34)
+    # the guide's promise is native's run, step for step: the same iterates on any CPU (the count
+    # and the last digits themselves move with the CPU's rounding, 34 and 2.29e-05 on the docs' machine)
+    assert ours.status == native.status == "stationary" and ours.iterations == native.iterations
     assert ours.objective == pytest.approx(native.objective, rel=1e-12)
-    assert ours.objective == pytest.approx(2.2878981207525776e-05, rel=1e-12)  # the number the guide gives
+    assert ours.objective == pytest.approx(2.29e-05, rel=5e-3)  # the guide's 2.29e-05, to its digits
 
 
 def test_the_guides_qp_backend_checks_its_option():
