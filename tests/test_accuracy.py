@@ -84,10 +84,28 @@ def test_a_free_input_refined_keeps_its_choices_jumps_on_points():
     assert result.nodes <= 400
 
 
-@pytest.mark.parametrize("mesh, field", [([0.0, 0.5, 0.4, 3.0], "mesh"), ([0.1, 3.0], "mesh"), ([0.0, 2.0], "mesh")])
-def test_a_bad_mesh_is_named(mesh, field):
-    with pytest.raises(InputError, match=field):
+@pytest.mark.parametrize("mesh, field, got", [
+    ([0.0, 0.5, 0.4, 3.0], "mesh[2]: expected a time > mesh[1] = 0.5", "0.4"),
+    ([0.1, 3.0], "mesh[0]: expected 0", "0.1"),
+    ([0.0, 2.0], "mesh[1]: expected T = 3", "2.0"),
+    ([0.0, float("nan"), 3.0], "mesh[1]: expected a finite mesh time (not NaN or inf)", "nan"),  # not its shape
+    ([0.0, 1.0, float("nan")], "mesh[2]: expected a finite mesh time (not NaN or inf)", "nan"),
+    (np.array([0.0, np.inf, 3.0]), "mesh[1]: expected a finite mesh time (not NaN or inf)", "inf"),
+    ([[0.0, 3.0]], "mesh: expected a list of at least two increasing mesh times from 0 to T = 3", "'shape (1, 2)'"),
+    (["a", 3.0], "mesh: expected a list of at least two increasing mesh times from 0 to T = 3", "['a', 3.0]"),
+])
+def test_a_bad_mesh_is_named(mesh, field, got):
+    """One line that names the mesh time at fault (its index), what was expected and what it is."""
+    with pytest.raises(InputError) as info:
         qdframe.solve("block-stop-stick", mesh=mesh)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(field) and message.endswith(f", got {got}"), message
+
+
+def test_a_grid_given_a_nan_mesh_time_names_the_nan():
+    """Grid's own check (a mesh made by code, not through solve): the NaN, not the shape."""
+    with pytest.raises(InputError, match=r"^mesh\[1\]: expected a finite mesh time \(not NaN or inf\), got nan$"):
+        Grid.from_mesh(np.array([0.0, np.nan, 1.0]), "trapezoid")
 
 
 def test_a_mesh_point_on_the_stop_makes_implicit_euler_exact_in_velocity():

@@ -27,6 +27,23 @@ def make_scheme(scheme: "str | Scheme") -> Scheme:
     return lookup("schemes", str(scheme)).obj()
 
 
+def check_mesh(tau: np.ndarray, T: float) -> None:
+    """InputError naming the first mesh time that is not finite, not increasing, or not 0
+    first and `T` last (a flat array `tau` of at least two times; the field is ``mesh[i]``)."""
+    horizon = f"mesh times increase from 0 to T = {T:g}"
+    bad = np.flatnonzero(~np.isfinite(tau))
+    if bad.size:
+        raise InputError(f"mesh[{bad[0]}]", "a finite mesh time (not NaN or inf)", float(tau[bad[0]]))
+    if tau[0] != 0.0:
+        raise InputError("mesh[0]", f"0 ({horizon})", float(tau[0]))
+    if tau[-1] != T:
+        raise InputError(f"mesh[{tau.size - 1}]", f"T = {T:g}, the last time ({horizon})", float(tau[-1]))
+    back = np.flatnonzero(np.diff(tau) <= 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise InputError(f"mesh[{i}]", f"a time > mesh[{i - 1}] = {tau[i - 1]:g} ({horizon})", float(tau[i]))
+
+
 @dataclass(frozen=True)
 class Grid:
     """`nodes` points on [0, T] laid out by `scheme` (default: the trapezoid rule), on a
@@ -63,12 +80,10 @@ class Grid:
             tau = np.linspace(0.0, float(self.T), intervals + 1)
         else:
             tau = np.asarray(self.mesh_times, dtype=float)
-            if tau.ndim != 1 or tau.size != intervals + 1 or not np.all(np.isfinite(tau)):
-                raise InputError("mesh", f"{intervals + 1} finite mesh times for {self.nodes} points of {scheme.name}",
+            if tau.ndim != 1 or tau.size != intervals + 1:
+                raise InputError("mesh", f"{intervals + 1} mesh times for {self.nodes} points of {scheme.name}",
                                  f"shape {tau.shape}")
-            if tau[0] != 0.0 or tau[-1] != float(self.T) or not np.all(np.diff(tau) > 0):
-                raise InputError("mesh", f"increasing mesh times from 0 to T = {float(self.T):g}",
-                                 f"[{tau[0]:g}, …, {tau[-1]:g}]")
+            check_mesh(tau, float(self.T))
         object.__setattr__(self, "mesh_times", tau)
         layout = scheme.layout(tau)
         object.__setattr__(self, "scheme", scheme)

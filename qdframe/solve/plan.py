@@ -31,6 +31,7 @@ from ..line_searches.base import LineSearch
 from ..model import InclusionModel
 from ..registry import make_direction, make_line_search
 from ..schemes import Scheme
+from ..schemes.grid import check_mesh
 
 DEFAULT_ACCURACY = 1e-6  # the target when none is given: max|x − x*| ≤ 1e-6·max(1, max|x|)
 DEFAULT_MAX_ITER = 500  # max_iter=None on a fixed grid (a certified solve: the direction's certified_max_iter)
@@ -130,14 +131,20 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
 
 
 def mesh_times(mesh: Sequence[float] | np.ndarray, T: float) -> np.ndarray:
-    """The user's mesh as an array checked against the model's horizon."""
+    """The user's mesh as an array checked against the model's horizon: finite, increasing,
+    from 0 to T (the last time within rounding of T, then made T); an InputError names the
+    first time that is not (``mesh[i]``)."""
+    expected = f"a list of at least two increasing mesh times from 0 to T = {T:g}"
     try:
         tau = np.asarray(mesh, dtype=float)
     except (TypeError, ValueError):
-        raise InputError("mesh", "increasing mesh times from 0 to T", mesh) from None
-    if tau.ndim != 1 or tau.size < 2 or tau[0] != 0.0 or not np.isclose(tau[-1], T, rtol=1e-14, atol=0.0):
-        raise InputError("mesh", f"increasing mesh times from 0 to T = {T:g}", f"shape {tau.shape}" if tau.ndim != 1
-                         else f"[{tau[0]:g}, …, {tau[-1]:g}]")
+        shown = repr(mesh)  # the mesh itself where its repr is one short line
+        got = mesh if len(shown) <= 60 and "\n" not in shown else " ".join(shown.split())[:57] + "..."
+        raise InputError("mesh", expected, got) from None
+    if tau.ndim != 1 or tau.size < 2:
+        raise InputError("mesh", expected, f"shape {tau.shape}")
     tau = tau.copy()
-    tau[-1] = T
+    if np.isfinite(tau[-1]) and np.isclose(tau[-1], T, rtol=1e-14, atol=0.0):
+        tau[-1] = T
+    check_mesh(tau, float(T))
     return tau
