@@ -262,13 +262,13 @@ def scipy_qp(ns, out):
 
 
 def theta_method(ns, out):
-    # θ = 3/4: Z_k = Z_{k−1} + h·(z_{k−1}/4 + 3z_k/4); x' = 1 integrated exactly, x' = x to first order
+    # "θ = 3/4": Z_k = Z_{k−1} + h·(z_{k−1}/4 + 3z_k/4), on the mesh h = 1/4
     layout = ns["ThetaMethod"]().layout(np.linspace(0.0, 1.0, 5))
     increments = layout.increments.toarray()
     assert np.allclose(increments[2, 1:3], [0.25 * 0.25, 0.75 * 0.25])
 
 
-def my_models_tests(ns, out, tmp_path, monkeypatch):
+def my_models_tests(ns, out, tmp_path):
     """Section 6: the package the page lays out, installed (a .dist-info with its entry points
     on sys.path), and its tests run."""
     text = (ROOT / "docs/authoring.md").read_text()
@@ -301,18 +301,19 @@ def my_models_tests(ns, out, tmp_path, monkeypatch):
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-models\nVersion: 0.1.0\n")
     (info / "entry_points.txt").write_text(
         "".join(f"[{g}]\n" + "".join(f"{k} = {v}\n" for k, v in entries.items()) for g, entries in groups.items()))
-    monkeypatch.syspath_prepend(str(tmp_path / "pkg"))
-    registry.refresh()
-    try:
-        tests = [name for name in ns if name.startswith("test_") and callable(ns[name])]
-        assert len(tests) == 3
-        for name in tests:
-            ns[name]()
-    finally:
-        monkeypatch.undo()
-        for name in [m for m in sys.modules if m == "my_models" or m.startswith("my_models.")]:
-            del sys.modules[name]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.syspath_prepend(str(tmp_path / "pkg"))
         registry.refresh()
+        try:
+            tests = [name for name in ns if name.startswith("test_") and callable(ns[name])]
+            assert len(tests) == 3
+            for name in tests:
+                ns[name]()
+        finally:
+            patch.undo()
+            for name in [m for m in sys.modules if m == "my_models" or m.startswith("my_models.")]:
+                del sys.modules[name]
+            registry.refresh()
 
 
 CHECKS: dict[tuple[str, str], Callable] = {
@@ -339,8 +340,9 @@ CHECKS: dict[tuple[str, str], Callable] = {
 
 def test_every_check_picks_one_block_and_every_not_run_block_says_why():
     for (page, line), check in CHECKS.items():
-        picked = [code for code, _ in blocks(page) if line in code]
+        picked = [reason for code, reason in blocks(page) if line in code]
         assert len(picked) == 1, f"{page}: {len(picked)} blocks hold {line!r} ({check.__name__})"
+        assert picked[0] is None, f"{page}: the block holding {line!r} is marked not run, but its check must run"
     for page in PAGES:
         for reason in NOT_RUN_MARK.findall((ROOT / page).read_text()):
             assert reason.strip(), f"{page}: a block marked not run without a reason"
@@ -368,7 +370,7 @@ def test_the_pages_python_runs_and_says_what_it_does(page, tmp_path, monkeypatch
             for (where, line), check in CHECKS.items():
                 if where == page and line in code:
                     if check is my_models_tests:
-                        check(ns, printed.getvalue(), tmp_path, monkeypatch)
+                        check(ns, printed.getvalue(), tmp_path)
                     else:
                         check(ns, printed.getvalue())
         defined = [value for value in ns.values() if isinstance(value, type) and issubclass(value, InclusionModel)
