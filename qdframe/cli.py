@@ -258,9 +258,9 @@ def _solve(args: argparse.Namespace) -> int:
             lookup(kind, name)
     arguments = dict(direction=direction, estimate=not args.no_estimate, simulate_start=not args.no_simulate_start,
                      **{name: getattr(args, name) for name in SOLVE_OPTIONS})
+    chosen = plan(model, **arguments)  # what the solve will run, checked: a bad value is refused before any work
     show_progress = not args.quiet and sys.stderr.isatty()
     if show_progress:  # before the first iteration: a slow first evaluation is not a hang
-        chosen = plan(model, **arguments)  # what the solve will run: its grid and budget
         print(f"solving {model.name} {chosen.describe()} with {args.direction}, budget {chosen.budget} iterations …",
               end="", file=sys.stderr, flush=True)
     try:

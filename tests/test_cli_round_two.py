@@ -177,6 +177,60 @@ def test_options_in_range_are_taken():
     assert solver.mu == 1e-3 and solver.mu_max == 1e4
 
 
+# ---------------------------------------------------------------- issue 56, item 9: bad values of the options
+SIMULATE = ["simulate", "paper-7.1", "--from", "0", "--to", "1", "--x0", "0,0"]
+
+
+@pytest.mark.parametrize("argv, field, said", [
+    (["solve", "paper-7.1", "--accuracy", "0"], "argument --accuracy", "expected a positive finite number, got '0'"),
+    (["solve", "paper-7.1", "--accuracy", "nan"], "argument --accuracy", "expected a positive finite number, got 'nan'"),
+    (["solve", "paper-7.1", "--accuracy", "1e-6x"], "argument --accuracy", "expected a positive finite number"),
+    (["solve", "paper-7.1", "--tol", "0"], "argument --tol", "expected a positive finite number, got '0'"),
+    (["solve", "paper-7.1", "--tol", "nan"], "argument --tol", "expected a positive finite number, got 'nan'"),
+    (["solve", "paper-7.1", "--tol=-1e-10"], "argument --tol", "expected a positive finite number"),
+    (["solve", "paper-7.1", "--max-nodes", "2"], "argument --max-nodes", "expected an integer ≥ 3, got '2'"),
+    (["solve", "paper-7.1", "--max-nodes", "1e5"], "argument --max-nodes", "expected an integer ≥ 3, got '1e5'"),
+    (["solve", "paper-7.1", "--max-nodes", "100.5"], "argument --max-nodes", "expected an integer ≥ 3"),
+    (["solve", "paper-7.1", "--max-nodes", "many"], "argument --max-nodes", "expected an integer ≥ 3"),
+    (["solve", "paper-7.1", "--selection-scale", "0"], "argument --selection-scale", "expected a positive finite number"),
+    (["solve", "paper-7.1", "--residual-tol", "nan"], "argument --residual-tol", "expected a positive finite number"),
+    (["solve", "paper-7.1", "--eps-floor", "0"], "argument --eps-floor", "expected a positive finite number"),
+    (["solve", "paper-7.1", "--eps-floor", "1"], "eps_floor", "expected a number ≤ eps = 0.01"),  # the plan's check
+    (["solve", "paper-7.1", "--signs", "nan"], "argument --signs", "invalid choice: 'nan' (choose from "),
+    (["solve", "block-friction-coefficient", "--parameter", "mu=abc"], "argument --parameter",
+     "expected NAME=GUESS with a finite number as the guess, got 'mu=abc'"),
+    (["solve", "block-friction-coefficient", "--parameter", "mu=nan"], "argument --parameter",
+     "expected NAME=GUESS with a finite number as the guess"),
+    (["solve", "block-friction-coefficient", "--parameter", "nu=0.3"], "parameters",
+     "expected names among the model's parameters (mu), got 'nu'"),
+    (["solve", "paper-7.1", "--parameter", "mu=0.3"], "parameters", "expected names among the model's parameters (none)"),
+    ([*SIMULATE, "--dt", "0"], "argument --dt", "expected a positive finite number, got '0'"),
+    ([*SIMULATE, "--dt", "nan"], "argument --dt", "expected a positive finite number, got 'nan'"),
+    ([*SIMULATE, "--dt=-1e-3"], "argument --dt", "expected a positive finite number"),
+    (["bench", "run", "--nodes", "0"], "argument --nodes", "expected node counts ≥ 2, got '0'"),
+    (["bench", "run", "--nodes", "11,1"], "argument --nodes", "expected node counts ≥ 2, got '11,1'"),
+    (["bench", "run", "--nodes", "11.5"], "argument --nodes", "expected comma-separated node counts like 11,101"),
+    (["bench", "run", "--nodes", "11,"], "argument --nodes", "expected comma-separated node counts like 11,101"),
+    (["bench", "run", "--workers", "0"], "argument --workers", "expected an integer ≥ 1, got '0'"),
+    (["bench", "run", "--workers", "1.5"], "argument --workers", "expected an integer ≥ 1, got '1.5'"),
+    (["bench", "run", "--workers", "all"], "argument --workers", "expected an integer ≥ 1, got 'all'"),
+    (["bench", "directions", "--nodes", "1"], "argument --nodes", "expected an integer ≥ 2, got '1'"),
+    (["bench", "scale", "--nodes", "nan"], "argument --nodes", "expected comma-separated node counts like 11,101"),
+])
+def test_a_bad_option_value_is_one_line_naming_the_field_exit_2(monkeypatch, capsys, argv, field, said):
+    """Issue 56, item 9: each refused before any work, with one line that names the field and
+    the expected form (argparse's "invalid choice … (choose from …)" for a choice), and exit status 2."""
+    import qdframe.cli
+
+    _no_solve(monkeypatch)
+    for name in ("_simulate", "main_bench"):  # nor a simulation or a benchmark started
+        monkeypatch.setattr(qdframe.cli, name, lambda *args, **kwargs: pytest.fail("the command ran"))
+    assert main(argv) == EXIT_USAGE
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("qdframe") and f"error: {field}: {said}" in err, err
+
+
 # ---------------------------------------------------------------- item 1: outputs checked before the solve
 @pytest.mark.parametrize("path", ["out.xyz", "out"])
 def test_a_plot_format_no_one_writes_is_refused_before_the_solve(monkeypatch, capsys, tmp_path, path):
