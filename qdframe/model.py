@@ -321,7 +321,8 @@ class InclusionModel(ABC):
                 raise InputError("parameters", f"names among the model's parameters ({', '.join(names) or 'none'})",
                                  ", ".join(map(str, unknown)))
             guesses = _finite_vector(f"{type(self).__name__}.default_parameters", self.default_parameters, len(names))
-            guesses = np.array([float(parameters.get(name, value)) for name, value in zip(names, guesses)])
+            guesses = np.array([_finite_number(f"parameters[{name!r}]", parameters.get(name, value))
+                                for name, value in zip(names, guesses)])
         else:
             values = self.default_parameters if parameters is None else parameters
             guesses = _finite_vector("parameters", values, len(names))
@@ -468,6 +469,13 @@ def _bounds(field_name: str, bounds: object) -> tuple[float, float]:
     if np.isnan(lo) or np.isnan(hi) or not lo < hi:
         raise InputError(field_name, "a pair (lo, hi) with lo < hi (±inf for none)", bounds)
     return lo, hi
+
+
+def _finite_number(field_name: str, value: object) -> float:
+    """One finite number, or InputError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not np.isfinite(value):
+        raise InputError(field_name, "a finite number", value)
+    return float(value)
 
 
 def _finite_vector(field_name: str, values: object, length: int, free: bool = False) -> np.ndarray:

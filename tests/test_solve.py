@@ -147,6 +147,8 @@ def test_json_has_the_contract_fields(tmp_path):
         ({"max_nodes": 1000.5}, "max_nodes"),
         ({"max_nodes": "1000"}, "max_nodes"),
         ({"max_nodes": 2}, "max_nodes"),
+        ({"estimate": "yes", "nodes": 11}, "estimate"),
+        ({"continuation": float("nan")}, "continuation"),
     ],
 )
 def test_bad_arguments_name_the_field(kwargs, field):
@@ -155,6 +157,14 @@ def test_bad_arguments_name_the_field(kwargs, field):
         qdframe.solve("paper-7.2", **kwargs)
     message = str(info.value)
     assert "\n" not in message and message.startswith(f"{field}: ") and ": expected " in message, message
+
+
+@pytest.mark.parametrize("guess", ["abc", float("nan"), None])
+def test_a_bad_parameter_guess_names_the_parameter(guess):
+    with pytest.raises(qdframe.InputError) as info:
+        qdframe.solve("block-friction-coefficient", parameters={"mu": guess})
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("parameters['mu']: expected a finite number"), message
 
 
 @pytest.mark.parametrize(

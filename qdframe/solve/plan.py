@@ -102,6 +102,10 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
     if certificate not in (None, *CERTIFICATES):
         raise InputError("certificate", " or ".join(f'"{name}"' for name in CERTIFICATES) + " (None: by the problem)",
                          certificate)
+    if not isinstance(estimate, (bool, np.bool_)):
+        raise InputError("estimate", "True or False", estimate)
+    if continuation is not None and not isinstance(continuation, (str, Sequence, np.ndarray)):
+        raise InputError("continuation", '"auto", "none" or increasing node counts', continuation)
     refining = accuracy is not None or (nodes is None and mesh is None)  # else a fixed grid
     if refining and not estimate:
         raise InputError("estimate", "True when the mesh is refined to an accuracy (estimate=False needs nodes= or "
