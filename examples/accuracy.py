@@ -22,6 +22,7 @@ def main() -> None:
     args = parser.parse_args()
     print("| model | solve | points | status | error estimate | true error | switch times | time (s) |")
     print("|---|---|---|---|---|---|---|---|")
+    missed = []
     for name in args.models:
         for label, result in (("uniform, 101", qdframe.solve(name)),
                               (f"accuracy={args.accuracy:g}", qdframe.solve(name, accuracy=args.accuracy))):
@@ -29,6 +30,11 @@ def main() -> None:
             times = ", ".join(f"{t:.10g}" for t in result.switch_times) or "—"
             print(f"| {name} | {label} | {result.nodes} | {result.status} | {estimate} "
                   f"| {result.solution_error:.1e} | {times} | {result.wall_time_s:.2f} |", flush=True)
+            # each ends `solved`, its true error within its error estimate
+            if result.status != "solved" or result.solution_error > result.error_estimate:
+                missed.append(f"{name}, {label}")
+    if missed:
+        raise SystemExit(f"expected `solved` with the true error within the estimate: {'; '.join(missed)}")
 
 
 if __name__ == "__main__":

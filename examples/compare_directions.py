@@ -32,6 +32,7 @@ def main() -> None:
     print("| model | N | direction | status | iterations | reached paper accuracy at | time (s) | I "
           "| objective | boundary error | inclusion residual |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
+    missed = []
     for name in args.models:
         model = qdframe.load_model(name)
         for nodes in args.nodes:
@@ -43,6 +44,13 @@ def main() -> None:
                 print(f"| {name} | {nodes} | {direction} | {r.status} | {r.iterations} | {reached} "
                       f"| {r.wall_time_s:.2f} | {r.I:.1e} | {r.objective:.1e} | {r.boundary_error:.1e} "
                       f"| {r.inclusion_residual:.1e} |", flush=True)
+                # docs/paper.md: gauss-newton solves every discrete problem here (7.3's `uncertified`: its
+                # solutions form a set, and a fixed grid's estimate stays above the target)
+                wanted = ("solved", "uncertified") if name == "paper-7.3" else ("solved",)
+                if direction == "gauss-newton" and r.status not in wanted:
+                    missed.append(f"{name} at N = {nodes}: {r.status}")
+    if missed:
+        raise SystemExit(f"gauss-newton left discrete problems unsolved: {'; '.join(missed)}")
 
 
 if __name__ == "__main__":

@@ -63,12 +63,29 @@ def show(label: str, result) -> None:
           f"switch times {times}; error estimate {estimate}")
 
 
+def expect(label: str, result, status: str, switch_times: tuple[float, ...] = ()) -> None:
+    """Exit non-zero where a solve does not end as docs/authoring.md says (switch times to its 3 decimals)."""
+    found = tuple(result.switch_times)
+    times_agree = not switch_times or (len(found) == len(switch_times) and np.allclose(found, switch_times, atol=1e-3))
+    if result.status != status or not times_agree:
+        raise SystemExit(f"{label}: expected {status}, switch times {switch_times or '—'}; got {result.status}, {found}")
+
+
 if __name__ == "__main__":
     clock = time.perf_counter()
-    show("1. released from θ = 1", qdframe.solve(CoulombPendulum()))
-    show("2. released from θ = 2.5, accuracy 1e-5", qdframe.solve(Released(), accuracy=1e-5))
-    show("3. the same, 101 nodes, constant start",
-         qdframe.solve(Released(), nodes=101, max_iter=100, simulate_start=False))
-    show("4. the same, 101 nodes, your own start", qdframe.solve(ReleasedFromSimulation(), nodes=101,
-                                                                 simulate_start=False))
+    first = qdframe.solve(CoulombPendulum())
+    show("1. released from θ = 1", first)
+    expect("1", first, "solved", (1.056, 2.077))
+    if abs(first.x[-1, 0] - 0.0997) > 1e-4:
+        raise SystemExit(f"1: expected to stick at θ = 0.0997, got {first.x[-1, 0]:.4f}")
+    swings = qdframe.solve(Released(), accuracy=1e-5)
+    show("2. released from θ = 2.5, accuracy 1e-5", swings)
+    expect("2", swings, "solved", (1.498, 2.625, 3.673, 4.691))
+    constant = qdframe.solve(Released(), nodes=101, max_iter=100, simulate_start=False)
+    show("3. the same, 101 nodes, constant start", constant)
+    if constant.converged:  # docs/authoring.md: it stays near θ ≡ 2.5, I = 6.9e-2: the start matters
+        raise SystemExit(f"3: expected no solution from the constant start, got {constant.status}")
+    own = qdframe.solve(ReleasedFromSimulation(), nodes=101, simulate_start=False)
+    show("4. the same, 101 nodes, your own start", own)
+    expect("4", own, "uncertified")  # the discrete problem solved; 101 points cannot meet the target
     print(f"{time.perf_counter() - clock:.1f} s in all")

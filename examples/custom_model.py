@@ -34,3 +34,5 @@ class Spreading(InclusionModel):
 if __name__ == "__main__":
     result = qdframe.solve(Spreading())
     print(result.summary())
+    if result.status != "solved":
+        raise SystemExit(f"expected `solved`, got {result.status}")

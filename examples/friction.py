@@ -24,6 +24,7 @@ def main() -> None:
     args = parser.parse_args()
     print("| N | status | iterations | time (s) | max |v| stuck | λ stuck | error vs exact |")
     print("|---|---|---|---|---|---|---|")
+    missed = []
     for nodes in args.nodes:
         result = qdframe.solve("block-stop-stick", nodes=nodes, scheme=args.scheme)
         stuck = result.t > 1.05  # after the stop at t = 1
@@ -31,6 +32,11 @@ def main() -> None:
         print(f"| {nodes} | {result.status} | {result.iterations} | {result.wall_time_s:.2f} "
               f"| {np.max(np.abs(result.x[stuck, 1])):.1e} | {lam.min():.6f}…{lam.max():.6f} "
               f"| {result.solution_error:.2e} |", flush=True)
+        # docs/friction.md: the discrete problem solved, |v| ≤ 1e-8 in the stick phase, λ = −1/3 there
+        if not result.converged or np.max(np.abs(result.x[stuck, 1])) > 1e-8 or np.max(np.abs(lam + 1 / 3)) > 1e-6:
+            missed.append(f"N = {nodes}")
+    if missed:
+        raise SystemExit(f"expected the discrete problem solved, |v| ≤ 1e-8 and λ = −1/3 when stuck: {', '.join(missed)}")
 
 
 if __name__ == "__main__":

@@ -41,6 +41,9 @@ def main() -> None:
           f"{result.switch_times[0]:.9f}, error estimate {result.error_estimate:.1e}")
     result.plot("friction_coefficient.png")
     print("wrote friction_coefficient.png")
+    tol = result.accuracy * max(1.0, abs(result.x).max())  # what `solved` promises, μ included
+    if result.status != "solved" or abs(mu - 2) > tol:
+        raise SystemExit(f"expected `solved` with |mu − 2| ≤ {tol:.0e}, got {result.status}, mu = {mu}")
 
 
 if __name__ == "__main__":

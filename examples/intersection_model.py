@@ -50,3 +50,6 @@ if __name__ == "__main__":
     print(report.table())
     result = qdframe.solve(Lens(), nodes=101)
     print(result.summary())
+    if not report.ok or result.status != "solved":  # docs/guide.md: it checks the model and solves with it
+        raise SystemExit(f"expected a checked model and `solved`, got {len(report.failures)} failed pieces "
+                         f"and {result.status}")

@@ -114,10 +114,19 @@ def main() -> None:
     lam = result.selections[stuck]
     print(f"  stuck: |v| ≤ {np.max(np.abs(result.x[stuck, 2:4])):.0e}, the selection λ = (F/μ)·d inside the disc "
           f"(|λ| from {np.min(np.linalg.norm(lam, axis=1)):.2f} to {np.max(np.linalg.norm(lam, axis=1)):.2f})")
+    # docs/authoring.md and friction.md: `solved`, the true error within the estimate, the stop and the
+    # break-away at 1 and 2 to 2e-10, λ inside the disc while it sticks
+    if (result.status != "solved" or error > result.error_estimate
+            or not np.allclose(result.switch_times, [1.0, 2.0], rtol=0, atol=2e-10)
+            or np.max(np.linalg.norm(lam, axis=1)) > 1.0):
+        raise SystemExit("Sgn(v1, v2): not the `solved` answer the docs state (above)")
     space = qdframe.solve("isotropic-slide-3d")
     truth = qdframe.load_model("isotropic-slide-3d").exact_solution(space.t)
     print(f"isotropic-slide-3d: {space.status} on {space.nodes} points, true error {np.max(np.abs(space.x - truth)):.1e}, "
           f"stop at {space.switch_times[0]:.12f} (exact: 4/3)")
+    space_tol = space.accuracy * max(1.0, np.max(np.abs(space.x)))  # friction.md: `solved`, the stop to 3e-11
+    if space.status != "solved" or np.max(np.abs(space.x - truth)) > space_tol or abs(space.switch_times[0] - 4 / 3) > 3e-11:
+        raise SystemExit("isotropic-slide-3d: not the `solved` answer the docs state (above)")
     hand = qdframe.solve(HandPuck())
     d, n = np.array([0.6, 0.8]), np.array([-0.8, 0.6])
     along, across, v_along, v_across = sled_phase(hand.t)  # the closed form of the slide under 0.5·d
@@ -129,6 +138,8 @@ def main() -> None:
         qdframe.solve(NormWritten())
     except SetStructureError as refused:
         print(f"v/|v| as a formula: refused, one line: {refused}")
+    else:
+        raise SystemExit("v/|v| as a formula: expected refused, and it was solved")
     for model in (WholeDisc(), BoxLaw()):
         other = qdframe.solve(model, nodes=201, estimate=False)
         away = float(np.max(np.abs(other.x - reference.exact_solution(other.t))))

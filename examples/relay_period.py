@@ -34,12 +34,18 @@ class Relay(SetModel):
 
 def main() -> None:
     exact = 4 * np.sqrt(2)
+    missed = []
     for guess in (3.0, 5.0, 7.0):
         result = qdframe.solve(Relay(T=guess))
         print(f"guess T = {guess}: {result.status}, T = {result.T:.12f} (|T − 4√2| = {abs(result.T - exact):.1e}), "
               f"crossings at t = {', '.join(f'{t:.6f}' for t in result.switch_times)}")
+        tol = result.accuracy * max(1.0, abs(result.x).max())  # what `solved` promises, T included
+        if result.status != "solved" or abs(result.T - exact) > tol:
+            missed.append(f"guess {guess}: {result.status}, T = {result.T}")
     result.plot("relay_period.png")
     print("wrote relay_period.png")
+    if missed:
+        raise SystemExit(f"expected `solved` with T = 4√2 from every guess: {'; '.join(missed)}")
 
 
 if __name__ == "__main__":

@@ -33,6 +33,10 @@ class HeatedRoom(SetModel):
 
 if __name__ == "__main__":
     model = HeatedRoom()
-    print(check_model(model).table())
+    report = check_model(model)
+    print(report.table())
     result = qdframe.solve(model)
     print(result.summary())
+    if not report.ok or result.status != "solved":  # docs/authoring.md: checked, and `solved`
+        raise SystemExit(f"expected a checked model and `solved`, got {len(report.failures)} failed pieces "
+                         f"and {result.status}")

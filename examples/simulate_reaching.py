@@ -24,6 +24,7 @@ out = parser.parse_args().out
 out.mkdir(parents=True, exist_ok=True)
 
 start = (-1.0, 1.0, -1.0, -1.0, 1.0, 1.0)
+PAPER = (-1.053, 1.099, -0.787, 0.0, 0.026, 1.119)  # the paper's x(0), rounded
 model = qdframe.load_model("paper-7.3", x0=start)
 run = simulate(model, -0.2, 0.0, start, dt=1e-4)
 print("x(0) =", ", ".join(f"{name} {value:.4f}" for name, value in zip(run.state_names, run.x[-1])))
@@ -35,3 +36,5 @@ ax.set(xlabel="t", title="reaching phase: x4 hits the surface x4 = 0 and slides"
 ax.legend(ncol=3)
 fig.savefig(out / "reaching-phase.png", dpi=110)
 print(f"wrote {out / 'reaching-phase.png'}")
+if max(abs(value - paper) for value, paper in zip(run.x[-1], PAPER)) > 1e-3:  # to the paper's last digit
+    raise SystemExit(f"x(0) misses the paper's {PAPER} by more than 1e-3")

@@ -26,3 +26,7 @@ print("x1 stays near 0:", abs(result.x[:, 0]).max())
 result.to_json(out / "paper-7.1.json")
 plot_result(result, out / "paper-7.1.png")
 print(f"wrote {out / 'paper-7.1.json'} and {out / 'paper-7.1.png'}")
+# the paper's stopping rule, within the paper's accuracy (objective ≤ 1e-3, boundary error ≤ 5e-3)
+if result.status != "stationary" or result.objective > 1e-3 or result.boundary_error > 5e-3:
+    raise SystemExit(f"expected `stationary` within the paper's accuracy, got {result.status}, "
+                     f"objective {result.objective:.1e}, boundary error {result.boundary_error:.1e}")

@@ -35,6 +35,9 @@ def main() -> None:
           f"error estimate {result.error_estimate:.1e} on {result.nodes} points")
     result.plot("stopping_time.png")
     print("wrote stopping_time.png")
+    tol = result.accuracy * max(1.0, abs(result.x).max())  # what `solved` promises, T included
+    if result.status != "solved" or abs(result.T - 0.5) > tol:
+        raise SystemExit(f"expected `solved` with |T − 0.5| ≤ {tol:.0e}, got {result.status}, T = {result.T}")
 
 
 if __name__ == "__main__":

@@ -38,6 +38,8 @@ def main() -> None:
         switches = ", ".join(f"{t:.4f}" for t in result.switch_times)
         print(f"{label}: {result.status} on {result.nodes} points, error estimate {result.error_estimate:.1e}, "
               f"switches at t = {switches}")
+        if result.status != "solved":  # certified to its target, 1e-6·max(1, max|x|) or 1e-6/6 of it
+            raise SystemExit(f"{label}: expected `solved`, got {result.status}")
 
 
 if __name__ == "__main__":

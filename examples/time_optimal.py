@@ -47,6 +47,9 @@ def main() -> None:
           f"penalty λ = {result.options['penalty']:.0e}")
     result.plot("time_optimal.png")
     print("wrote time_optimal.png")
+    tol = result.accuracy * max(1.0, abs(result.x).max())  # what `solved` promises, T included
+    if result.status != "solved" or abs(result.T - T_STAR) > tol:
+        raise SystemExit(f"expected `solved` with |T − T*| ≤ {tol:.0e}, got {result.status}, T = {result.T}")
 
 
 if __name__ == "__main__":

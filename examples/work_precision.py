@@ -31,6 +31,7 @@ def main() -> None:
     print(f"{args.model}: reference = the model's {'closed form' if model.exact_solution([0.0]) is not None else 'replayed motion'}")
     print("| solve | points | status | time (s) | error | end error | target | `solved` holds up |")
     print("|---|---|---|---|---|---|---|---|")
+    broken = []
     for label, options in runs:
         result = qdframe.solve(model, **options)
         verdict = judge(model, result.t, result.x, result.z, result.u, switch_times=result.switch_times,
@@ -39,6 +40,10 @@ def main() -> None:
         holds = "—" if result.status != "solved" else ("yes" if verdict.error <= tol else f"no (> {tol:g})")
         print(f"| {label} | {result.nodes} | {result.status} | {result.wall_time_s:.2f} | {verdict.error:.1e} "
               f"| {verdict.end_error:.1e} | {tol:.1e} | {holds} |")
+        if holds.startswith("no"):
+            broken.append(label)
+    if broken:
+        raise SystemExit(f"`solved` does not hold up against the reference: {', '.join(broken)}")
 
 
 if __name__ == "__main__":
