@@ -4,22 +4,29 @@ the docs say it does.
 Commands are read from the Markdown itself: the lines of ``sh`` code blocks and the inline
 code spans that start with ``qdframe `` or ``python examples/``. Synopses (with
 ``[…]``, ``NAME``, ``…`` or ``a|b``) are usage, not commands. Each command is
-parsed by the real CLI parser, and each one is run in a fresh copy of the repository (the
-files git tracks), except those listed in NOT_RUN with the reason; installs are the CI's
-own job (its set-up command is the README's). A ``qdframe solve`` runs with ``--json -``
-added; where the docs state an outcome (a status, an error, a message, a table's verdict)
-OUTCOMES asserts it. Every script in examples/ is run, by a docs command or by EXAMPLES at
-a small size, and checked the same way.
+parsed by the real CLI parser, and each distinct one runs once (however many pages give it)
+in a fresh copy of the repository (the files git tracks, copied once per session and shared
+by the xdist workers), except those listed in NOT_RUN with the reason (a long measurement,
+a reader's plugin, a mention in prose); installs are the CI's own job (its set-up command is
+the README's). A ``qdframe solve`` runs with ``--json -`` added and must end with the status
+its page states, declared in STATUSES (and exit with that status's code): a solve without
+a declared status fails test_every_run_solve_declares_its_status. Where the docs state more
+(a number it prints, an error, a message, a table's verdict) OUTCOMES asserts it, within
+the stated bound. Every script in examples/ is run, by a docs command or by EXAMPLES at a
+small size; each exits non-zero where its printed answer misses what its page states, and
+OUTCOMES or EXAMPLES check what it prints.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import re
 import shlex
 import shutil
 import subprocess
 import sys
+import time
 import types
 from pathlib import Path
 from typing import Callable, NamedTuple
@@ -101,6 +108,9 @@ NOT_RUN = {
     # every model with an exact solution at two targets, uniform ladders to 81921 points: 3–5
     # minutes; tests/bench/test_bench_accuracy.py runs its code on one model, every step
     "qdframe bench accuracy": "a 4-minute measurement, its code run by test_bench_accuracy.py",
+    # benchmarks.md's prose ("`qdframe bench run --peers` then runs it [a new peer] on every problem it
+    # states"): the quick suite with its peers, 2–4 minutes, which tests/bench/test_bench_run.py runs
+    "qdframe bench run --peers": "a mention in prose of the quick suite, run by test_bench_run.py",
     # sliding-mode-terminal on three grids and at accuracy 1e-3 and 1e-6: 5 min 1 s on the idle
     # 2-core machine (2026-11-24), 469 s in a loaded CI run, most of it the 1e-6 solve; the
     # README's `--accuracy 1e-3` variant runs here, the same code on every line but that solve
@@ -147,20 +157,41 @@ def test_every_qdframe_command_parses(source, command):
     build_parser().parse_args(shlex.split(command)[1:])
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def fresh_copy(tmp_path_factory) -> Path:
-    """The files git tracks, copied: what a fresh clone holds."""
-    target = tmp_path_factory.mktemp("fresh") / "qdframe"
-    tracked = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True).stdout
-    for name in filter(None, tracked.decode().split("\0")):
-        source = ROOT / name
-        if source.is_file():
-            (target / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(source, target / name)
+    """The files git tracks, copied: what a fresh clone holds. Made once per test session: under
+    pytest-xdist the first worker to take the lock (a folder, made atomically) copies into the
+    session's folder, which all its workers share, and the others wait for its mark."""
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent  # the session's folder; a worker's own is popen-gwN inside it
+    target, lock, mark = base / "fresh" / "qdframe", base / "fresh.lock", base / "fresh.made"
+    try:
+        lock.mkdir()
+    except FileExistsError:
+        deadline = time.monotonic() + 600
+        while not mark.exists():
+            assert time.monotonic() < deadline, "the worker making the fresh copy did not finish in 10 minutes"
+            time.sleep(0.2)
+        assert mark.read_text() == "made", "the worker making the fresh copy failed"
+        return target
+    made = False
+    try:
+        tracked = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True).stdout
+        for name in filter(None, tracked.decode().split("\0")):
+            source = ROOT / name
+            if source.is_file():
+                (target / name).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(source, target / name)
+        made = True
+    finally:
+        mark.write_text("made" if made else "failed")
     return target
 
 
-RUN = [c for c in COMMANDS if not _is_setup(c[1]) and c[1] not in NOT_RUN]
+RUN = [(", ".join(sorted({page for page, same in COMMANDS if same == command})), command)
+       for command in sorted({command for _, command in COMMANDS}) if not _is_setup(command) and command not in NOT_RUN]
+"""(pages, command): each distinct command once, however many pages give it."""
 
 
 class Outcome(NamedTuple):
@@ -172,9 +203,59 @@ class Outcome(NamedTuple):
     cwd: Path
 
 
+S, U, ST, MI = Status.SOLVED, Status.UNCERTIFIED, Status.STATIONARY, Status.MAX_ITER
+STATUSES: dict[str, Status] = {
+    # README: "the figure above is this solve's --plot", captioned "paper-7.1 solved"
+    "qdframe solve paper-7.1 --nodes 101 --plot docs/figures/paper-7.1.png": S,
+    # README: "refined until certified"; friction.md: "without --nodes certifies it"
+    "qdframe solve block-stop-stick": S,
+    # README: "the μ that stops a thrown block at p = 1: 2", "`solved` covers them"
+    "qdframe solve block-friction-coefficient --parameter mu=4": S,
+    # README: T = 4√2 and T* = (4/3)·√1.5, "`solved` covers them"
+    "qdframe solve relay-period": S,
+    "qdframe solve block-time-optimal": S,
+    # cli.md: "finds the period 4√2 and … finds μ = 2, both `solved`"
+    "qdframe solve relay-oscillator --free-T --T 5 --periodic x1,x2": S,
+    # authoring.md: "Each ends `solved` in 2 iterations, as without them"
+    "qdframe solve paper-7.1 --option mu=1e-8": S,
+    "qdframe solve paper-7.1 --option mu=1e-8 --option mu_max=1e4": S,
+    # cli.md: "`qdframe solve paper-7.1 --option qp=osqp` ends `solved`"
+    "qdframe solve paper-7.1 --option qp=osqp": S,
+    # cli.md: "ends `solved` on a nonuniform mesh of 99 points"
+    "qdframe solve block-breakaway --accuracy 1e-6": S,
+    # cli.md: "ends, with exit status 4, `stationary (…)`"
+    "qdframe solve paper-7.2 --xT=3,0": ST,
+    # friction.md: "`uncertified`: the discrete problem is solved"
+    "qdframe solve block-stop-stick --nodes 101 --plot docs/figures/block-stop-stick.png": U,
+    # method.md: "the default call certifies on 45 points instead of 375"
+    "qdframe solve coulomb-rest-to-rest": S,
+    "qdframe solve coulomb-rest-to-rest --inputs free": S,
+    # method.md: "stops `stationary` after 34 iterations"
+    "qdframe solve paper-7.1 --direction native --nodes 101": ST,
+    # benchmarks.md: the default continuation "starts the finest grid at a solution, and ends `solved`"
+    "qdframe solve paper-7.1 --nodes 100001": S,
+    # benchmarks.md, "Iterations up the ladder": "each solve below ends `uncertified`" (no estimate)
+    "qdframe solve paper-7.3 --nodes 1001 --no-estimate --no-simulate-start": U,
+    "qdframe solve paper-7.3 --nodes 10001 --no-estimate --no-simulate-start": U,
+    "qdframe solve paper-7.3 --nodes 1001 --scheme radau-iia --no-estimate --no-simulate-start": U,
+    "qdframe solve paper-7.3 --nodes 1001 --no-estimate": U,
+    "qdframe solve paper-7.3 --nodes 10001 --no-estimate": U,
+    # paper.md: "`solved` with estimate 6.8e-9"
+    "qdframe solve paper-7.2 --nodes 100001": S,
+    # paper.md: "exit status 5, `max_iter`"
+    "qdframe solve paper-7.3 --nodes 101 --direction native --no-simulate-start": MI,
+    # paper.md: "`uncertified`, as every fixed grid of 7.3 above: its discrete problem solved in 24 iterations"
+    "qdframe solve paper-7.3 --nodes 101 --plot docs/figures/paper-7.3.png": U,
+}
+"""The status each `qdframe solve` that runs here ends with, as the docs' page states it:
+`_run` asserts it and the exit code that goes with it (qdframe/status.py). A solve that runs without a declared
+status fails test_every_run_solve_declares_its_status."""
+
+
 def _run(command: str, cwd: Path) -> Outcome:
     """Run `command` in `cwd` as the docs give it (a solve with ``--json -`` added) and
-    check its exit status: 0, or for a solve the code of its status (qdframe/status.py)."""
+    check how it ended: a solve with the status STATUSES declares for it and that status's
+    exit code, anything else (an example's own check of its answer included) exit 0."""
     words = shlex.split(command)
     solve = words[:2] == ["qdframe", "solve"]
     if words[0] == "qdframe":
@@ -185,8 +266,11 @@ def _run(command: str, cwd: Path) -> Outcome:
         words += ["--json", "-"]
     done = subprocess.run(words, cwd=cwd, capture_output=True, text=True, timeout=600)
     data = json.loads(done.stdout) if solve and done.stdout.strip() else None
-    expected = EXIT_CODES[Status(data["status"])] if data else 0  # a solve exits with its status's code
-    assert done.returncode == expected, f"`{command}` exited {done.returncode}, expected {expected}:\n{done.stderr[-2000:]}"
+    expected = EXIT_CODES[STATUSES[command]] if solve else 0
+    assert done.returncode == expected, (f"`{command}` exited {done.returncode}, expected {expected}:\n"
+                                         f"{done.stdout[-2000:] if not solve else ''}{done.stderr[-2000:]}")
+    if solve:
+        assert data["status"] == STATUSES[command], f"`{command}` ended {data['status']}: {data['message']}"
     return Outcome(done.stdout, done.stderr, data, cwd)
 
 
@@ -220,6 +304,67 @@ def _solved(out: Outcome) -> None:
     check_certified(_result(out.data))
 
 
+def _about(measured: float, stated: float, rel: float = 0.25) -> bool:
+    """A count or an estimate a page gives as measured on its machine: such numbers move with the
+    CPU's rounding, so they are held to a band (as in tests/test_docs_python.py); statuses and the
+    values a solve finds are held to what they promise."""
+    return abs(measured - stated) <= rel * abs(stated)
+
+
+def _finds(exact: float, unknown: Callable[[dict], float]) -> Callable[[Outcome], None]:
+    def check(out: Outcome) -> None:
+        """`solved` with the unknown (T, a parameter) at its exact value within what `solved`
+        promises: the target accuracy·max(1, max|x|) (docs/guide.md, "What `solved` promises")."""
+        _solved(out)
+        tol = out.data["accuracy"] * max(1.0, float(np.max(np.abs(out.data["x"]))))
+        assert abs(unknown(out.data) - exact) <= tol, (unknown(out.data), exact, tol)
+    return check
+
+
+def _points(nodes: int) -> Callable[[Outcome], None]:
+    def check(out: Outcome) -> None:
+        """method.md: the default call certifies coulomb-rest-to-rest on 45 points, with free inputs on 375."""
+        _solved(out)
+        assert _about(out.data["nodes"], nodes), out.data["nodes"]
+    return check
+
+
+def _iterations(per_grid: list[int]) -> Callable[[Outcome], None]:
+    def check(out: Outcome) -> None:
+        """benchmarks.md's tables: the discrete problem solved on these grids, in about these iterations."""
+        _solved(out)
+        found = out.data["options"]["iterations_per_grid"]
+        assert len(found) == len(per_grid) and _about(sum(found), sum(per_grid)), found
+    return check
+
+
+def _native_on_71(out: Outcome) -> None:
+    """method.md: on a fixed grid the paper's method stops `stationary` after 34 iterations
+    with a true error of 3.9e-4."""
+    data = out.data
+    assert _about(data["iterations"], 34) and data["solution_error"] < 3.95e-4, (data["iterations"], data["message"])
+
+
+def _stop_stick_on_101(out: Outcome) -> None:
+    """friction.md: implicit Euler at N = 101, 1 iteration from the model's simulated motion,
+    its discrete problem solved, the true error 2.98e-2 of a first-order grid, the switch at 1."""
+    _solved(out)
+    assert out.data["iterations"] == 1 and round(out.data["solution_error"], 4) == 2.98e-2
+    assert out.data["switch_times"] == pytest.approx([1.0], abs=1e-8)
+
+
+def _paper_72_at_1e5(out: Outcome) -> None:
+    """paper.md: 4 iterations over the grids 101, 301, …, 100001, `solved` with estimate 6.8e-9."""
+    _solved(out)
+    assert _about(out.data["iterations"], 4) and _about(out.data["error_estimate"], 6.8e-9)
+
+
+def _paper_73_at_101(out: Outcome) -> None:
+    """paper.md: gauss-newton solves 7.3's discrete problem on 101 points in 24 iterations."""
+    _solved(out)
+    assert _about(out.data["iterations"], 24), out.data["iterations"]
+
+
 def _finest_grid_starts_solved(out: Outcome) -> None:
     """docs/benchmarks.md: the default continuation starts 7.1's finest grid at a solution."""
     _solved(out)
@@ -227,11 +372,12 @@ def _finest_grid_starts_solved(out: Outcome) -> None:
 
 
 def _breakaway_to_1e_6(out: Outcome) -> None:
-    """README: `solved` on a nonuniform mesh of 313 points, switch time 1, estimate and true error ≤ 1e-6."""
+    """cli.md: `solved` on a nonuniform mesh of 99 points, switch time 1, error estimate 5.8e-7
+    by replay (its true error), within the target."""
     _solved(out)
     data = out.data
     assert data["solution_error"] <= data["error_estimate"] <= 1e-6 and data["certificate"] == "replay"
-    assert data["options"]["uniform"] is False and data["nodes"] <= 313
+    assert data["options"]["uniform"] is False and _about(data["nodes"], 99) and _about(data["error_estimate"], 5.8e-7)
     assert data["switch_times"] == pytest.approx([1.0], abs=1e-8)
 
 
@@ -271,13 +417,22 @@ def _simulated_reaching(out: Outcome) -> None:
     assert found == pytest.approx(expected, abs=1e-6)
 
 
-def _friction_suite(out: Outcome) -> None:
-    """README: every problem of the suite has its discrete problem solved at N = 101, 1001,
-    10001 (`uncertified`: a fixed grid is not meant to meet 1e-6) with a strict residual ≤ 1e-8."""
-    rows = _table(out.stdout)
-    assert len(rows) == 30
-    for row in rows:
-        assert _converged(row["status"]) and _number(row["strict residual"]) <= 1e-8, row
+def _friction_suite(count: int) -> Callable[[Outcome], None]:
+    def check(out: Outcome) -> None:
+        """friction.md: every problem of the suite has its discrete problem solved at N = 101, 1001,
+        10001 (`uncertified`: a fixed grid is not meant to meet 1e-6) with a strict residual ≤ 1e-8."""
+        rows = _table(out.stdout)
+        assert len(rows) == count
+        for row in rows:
+            assert _converged(row["status"]) and _number(row["strict residual"]) <= 1e-8, row
+    return check
+
+
+def _hard_cases(out: Outcome) -> None:
+    """guide.md: every hard case passes (the command exits 1 otherwise), among them the
+    unreachable end point (7.2 with xT = 5,5: `stationary`, I ≈ 9.2)."""
+    unreachable = re.search(r"unreachable end point.*?\bpass\b.*?(\w+), I = ([\d.]+)", out.stdout)
+    assert unreachable and unreachable[1] == "stationary" and _about(float(unreachable[2]), 9.2), out.stdout
 
 
 SOLVED_BY = {  # README, "Which scheme for friction and sliding": (scheme, N) whose discrete problem is solved, and not
@@ -431,7 +586,23 @@ def _time_optimal_small(out: Outcome) -> None:
 
 OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve paper-7.1 --nodes 101 --plot docs/figures/paper-7.1.png": _solved,
-    "qdframe solve paper-7.2 --nodes 100001": _solved,
+    "qdframe solve block-stop-stick": _solved,
+    "qdframe solve block-friction-coefficient --parameter mu=4": _finds(2.0, lambda data: data["parameters"]["mu"]),
+    "qdframe solve relay-period": _finds(4 * np.sqrt(2), lambda data: data["T"]),
+    "qdframe solve relay-oscillator --free-T --T 5 --periodic x1,x2": _finds(4 * np.sqrt(2), lambda data: data["T"]),
+    "qdframe solve block-time-optimal": _finds(4 / 3 * np.sqrt(1.5), lambda data: data["T"]),
+    "qdframe solve paper-7.1 --option qp=osqp": _solved,
+    "qdframe solve block-stop-stick --nodes 101 --plot docs/figures/block-stop-stick.png": _stop_stick_on_101,
+    "qdframe solve coulomb-rest-to-rest": _points(45),
+    "qdframe solve coulomb-rest-to-rest --inputs free": _points(375),
+    "qdframe solve paper-7.1 --direction native --nodes 101": _native_on_71,
+    "qdframe solve paper-7.3 --nodes 1001 --no-estimate --no-simulate-start": _iterations([21, 3, 6]),
+    "qdframe solve paper-7.3 --nodes 10001 --no-estimate --no-simulate-start": _iterations([21, 3, 6, 2, 3]),
+    "qdframe solve paper-7.3 --nodes 1001 --scheme radau-iia --no-estimate --no-simulate-start": _iterations([26, 3, 11]),
+    "qdframe solve paper-7.3 --nodes 1001 --no-estimate": _iterations([3]),
+    "qdframe solve paper-7.3 --nodes 10001 --no-estimate": _iterations([3]),
+    "qdframe solve paper-7.3 --nodes 101 --plot docs/figures/paper-7.3.png": _paper_73_at_101,
+    "qdframe solve paper-7.2 --nodes 100001": _paper_72_at_1e5,
     "qdframe solve paper-7.1 --nodes 100001": _finest_grid_starts_solved,
     "qdframe solve paper-7.1 --option mu=1e-8": _solved,
     "qdframe solve paper-7.1 --option mu=1e-8 --option mu_max=1e4": _solved,
@@ -439,10 +610,13 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve paper-7.2 --xT=3,0": _unreachable_end,
     "qdframe solve paper-7.3 --nodes 101 --direction native --no-simulate-start": _papers_method_on_73,
     "qdframe simulate paper-7.3 --from -0.2 --to 0 --x0=-1,1,-1,-1,1,1": _simulated_reaching,
-    "qdframe bench friction": _friction_suite,
+    "qdframe bench friction": _friction_suite(30),
+    "qdframe bench friction --models block-stopping-time,block-friction-coefficient": _friction_suite(6),
+    "qdframe bench hard": _hard_cases,
     "qdframe bench time-optimal --accuracy none --formulations global --stages 4 --elements 4 "
     "--out time-optimal-small": _time_optimal_small,
     "qdframe bench friction --schemes radau-iia,trapezoid --nodes 101,1001": _friction_schemes,
+    "python examples/custom_model.py": _solved_summary,
     "python examples/accuracy.py": _accuracy_table,
     "python examples/friction.py": _friction_example,
     "python examples/intersection_model.py": _checked_and_solved,
@@ -454,17 +628,31 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "python examples/compare_directions.py --models paper-7.3 --directions gauss-newton --scheme trapezoid "
     "--signs band": _band_73,
 }
-"""Commands whose outcome the docs state, and the check of it (the others: exit status 0)."""
+"""Commands whose outcome the docs state, and the check of what they print (a solve's status
+is STATUSES'; an example exits non-zero where its answer misses what its page states)."""
 
 EXAMPLES: dict[str, Callable[[Outcome], None]] = {
     "python examples/solve_paper.py --out example-out": _solve_paper,
-    "python examples/custom_model.py": _solved_summary,
     "python examples/set_model.py": _checked_and_solved,
     "python examples/simulate_reaching.py --out example-out": _simulate_reaching,
     "python examples/compare_directions.py --nodes 11 101 --max-iter 100": _compare_directions(
         {"paper-7.1", "paper-7.2", "paper-7.3"}, {11, 101}),
 }
 """The scripts of examples/ that no docs command runs (or runs only at full size), at a small size."""
+
+
+def test_every_run_solve_declares_its_status():
+    """A `qdframe solve` the docs give, and that runs here, ends as its page says: a new one
+    declares in STATUSES the status its page states (a page that states none is to say it)."""
+    solves = {command for _, command in RUN if command.startswith("qdframe solve ")}
+    assert solves <= set(STATUSES), f"no declared status (STATUSES): {sorted(solves - set(STATUSES))}"
+    assert set(STATUSES) <= solves, f"declared but not run: {sorted(set(STATUSES) - solves)}"
+
+
+def test_each_command_runs_once():
+    """A command given on several pages runs once; EXAMPLES holds none a page gives."""
+    commands = [command for _, command in RUN]
+    assert len(commands) == len(set(commands)) and not set(EXAMPLES) & set(commands)
 
 
 def test_every_stated_outcome_is_a_docs_command():
