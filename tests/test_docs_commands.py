@@ -466,8 +466,8 @@ def _friction_schemes(out: Outcome) -> None:
 
 
 def _accuracy_table(out: Outcome) -> None:
-    """README: the two accuracy=1e-6 solves are `solved`, true error ≤ estimate ≤ 1e-6, the
-    switch at its exact time; the uniform grids' `solved` have their error within the estimate."""
+    """docs/guide.md: the two accuracy=1e-6 solves are `solved`, true error ≤ estimate ≤ 1e-6,
+    the switch at its exact time; the default calls are `solved` with their error within the estimate."""
     rows = _table(out.stdout)
     exact_switch = {"block-breakaway": 1.0, "slide-after-reaching": np.sqrt(2.0) - 1.0}
     assert {r["model"] for r in rows} == set(exact_switch) and len(rows) == 4
