@@ -376,3 +376,36 @@ def test_exact_parameters_of_another_form_are_refused_naming_the_field(given, fi
 
     with pytest.raises(InputError, match=rf"Known\.exact_parameters: .*{re.escape(field)}"):
         Known()
+
+
+class _BiasedRelay(SetModel):
+    """x1' = x2, x2' ∈ −x1 − Sgn(x1) + 0.2 from (1, 0), x2 periodic, T free (issue 55): the
+    orbit keeps its energy, and x2 = 0 at its far turning point too, so every half-period is a
+    solution of the posed problem. Closed form: harmonic about −0.8 while x1 > 0 (from 1 to 0
+    in t₁ = arccos(0.8/1.8)) and about 1.2 while x1 < 0 (τ₂ = π − arccos(−1.2/R), R² = 1.2² + v₁²)."""
+
+    name = "biased-relay"
+    state_names = "x1 x2"
+    default_x0 = (1.0, 0.0)
+    default_T = 5.1  # a guess above the period, nearer to one and a half periods
+    free_T = True
+    periodic = ("x2",)
+
+    def sets(self, x1, x2):
+        return {x1: x2, x2: -x1 - Sgn(x1) + 0.2}
+
+
+def _biased_relay_period() -> float:
+    t1 = np.arccos(0.8 / 1.8)
+    speed = 1.8 * np.sin(t1)
+    return 2 * t1 + 2 * (np.pi - np.arccos(-1.2 / np.hypot(1.2, speed)))
+
+
+def test_a_period_from_a_guess_above_it_tries_the_sweeps_next_candidate():
+    """From 5.1 the sweep's nearest candidate is one and a half periods (6.12), where the solve
+    stalled and then, from the model's constant start, shrank T to 8.6e-8 (a constant x is
+    periodic for any T): `stationary`. The next candidate, the period, is solved."""
+    result = qdframe.solve(_BiasedRelay())
+    assert result.solved, result.message
+    assert abs(result.T - _biased_relay_period()) <= 1e-6 * max(1.0, float(np.max(np.abs(result.x))))
+    assert "from the first T = 6.12" in result.message and "it is solved" in result.message

@@ -25,9 +25,11 @@ from . import optimum
 from .grids import Run, Staged, run_grids, staged
 from .ladder import LADDER, Attempt, FreeInputs
 from .plan import Plan, plan
-from .start import swept_T
+from .start import swept_candidates
 from .unwrap import unwrap
 from .verdict import Refined, certify_result
+
+PERIOD_CANDIDATES = 3  # a period's solve tries at most this many of the sweep's first T's (nearest first)
 
 
 def solve(
@@ -142,11 +144,27 @@ def _verdict(attempt: Attempt) -> tuple[Attempt, Functional, SolveResult]:
 def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallback | None, clock: float) -> SolveResult:
     """The solve of a model with T or parameters unknown: its wrapper on s = t/T, unwrapped."""
     wrapper = unknowns.Unknowns(model)
+    candidates = [wrapper.T0]
     if wrapper.scaled and np.all(np.isfinite(model.x0)) and not wrapper.n_controls:  # a better first T
-        wrapper.T0 = swept_T(wrapper)
+        candidates = swept_candidates(wrapper) or candidates
     if chosen.mesh is not None and model.free_T:  # the mesh on s = t/T
         chosen = dataclasses.replace(chosen, mesh=tuple(np.asarray(chosen.mesh) / model.T))
-    result = unwrap(wrapper, _solve(wrapper, chosen, progress, time.perf_counter()))
+    # a period has several candidates (each half-period where a velocity alone is periodic): where
+    # the solve from the nearest does not end solved, the next ones are tried (PERIOD_CANDIDATES)
+    tries = candidates[:PERIOD_CANDIDATES] if wrapper.periodic else candidates[:1]
+    first = None
+    for T0 in tries:
+        wrapper = unknowns.Unknowns(model)
+        wrapper.T0 = T0
+        result = unwrap(wrapper, _solve(wrapper, chosen, progress, time.perf_counter()))
+        if result.status == Status.SOLVED:
+            if first is not None:
+                result.remarks.append(f"from the first T = {first.unknowns.T_start:.6g} of the sweep the solve "
+                                      f"ended {first.status} (T = {first.T:.3g}); from T = {T0:.6g} it is solved")
+            break
+        first = first or result
+    else:
+        result = first
     result.wall_time_s = time.perf_counter() - clock
     return result
 

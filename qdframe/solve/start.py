@@ -299,16 +299,24 @@ def stepped(functional: Functional, x0: np.ndarray) -> np.ndarray:
 
 def swept_T(wrapper: Unknowns) -> float:
     """A better first T of a model with T free where x(0) is given (the start of its solve):
-    the motion from x(0) with the guessed p,
-    integrated once over [T/2^k, T·2^k] ([T/2, T·2^k] for a period), and the T there that
-    misses the end and periodic conditions least (of the near-best, the nearest to the
-    guess); k = 1, 2, … up to SWEEP_OCTAVES until one misses by less than
-    SWEEP_NEAR·max(1, |x|). A guess of a
-    period a quarter off can sit where the misses are stationary (a corner of the relay's
-    orbit), and shooting from there does not move. The guess where the motion fails."""
+    the first of :func:`swept_candidates`, or the guess where there is none."""
+    found = swept_candidates(wrapper)
+    return found[0] if found else wrapper.T0
+
+
+def swept_candidates(wrapper: Unknowns) -> list[float]:
+    """The first T's worth trying for a model with T free where x(0) is given: the motion from
+    x(0) with the guessed p, integrated once over [T/2^k, T·2^k] ([T/2, T·2^k] for a period),
+    and the T's there that miss the end and periodic conditions least (each stretch of
+    near-best T's gives its best), nearest to the guess first; k = 1, 2, … up to
+    SWEEP_OCTAVES until one misses by less than SWEEP_NEAR·max(1, |x|). A guess of a period
+    a quarter off can sit where the misses are stationary (a corner of the relay's orbit), and
+    shooting from there does not move; a period has several (every half-period where a
+    velocity alone is periodic), which :func:`qdframe.solve.solving` tries in turn. Empty where
+    there are no conditions or the motion fails."""
     if not wrapper.end_indices and not wrapper.periodic:
-        return wrapper.T0
-    best = wrapper.T0
+        return []
+    best: list[float] = []
     for octave in range(1, SWEEP_OCTAVES + 1):
         # an end condition: downwards too (a stop before the guess); a period: not towards T = 0,
         # where a constant x is periodic
@@ -321,8 +329,9 @@ def swept_T(wrapper: Unknowns) -> float:
             break
     return best
 
-def _swept(wrapper: Unknowns, lo: float, hi: float) -> tuple[float, bool] | None:
-    """(the best T in [lo, hi], whether it nearly meets the conditions), or None."""
+def _swept(wrapper: Unknowns, lo: float, hi: float) -> tuple[list[float], bool] | None:
+    """(the best T of each stretch of near-best T's in [lo, hi], nearest to the guess first;
+    whether they nearly meet the conditions), or None."""
     lo = max(lo, wrapper.time_bound.lo * (1 + 1e-9) + 1e-300)
     hi = min(hi, wrapper.time_bound.hi * (1 - 1e-9))
     start = [*wrapper.inner.x0, *(bound.inverse(p) for bound, p in zip(wrapper.bounds, wrapper.inner.parameters)),
@@ -342,4 +351,8 @@ def _swept(wrapper: Unknowns, lo: float, hi: float) -> tuple[float, bool] | None
     scale = SWEEP_NEAR * max(1.0, float(np.max(np.abs(X))))
     near = size <= size.min() + scale
     times = s * hi
-    return float(times[near][np.argmin(np.abs(np.log(times[near] / wrapper.T0)))]), bool(size.min() <= scale)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], near.astype(int), [0]])))  # each stretch's first and past-last
+    stretches = [np.arange(start, stop) for start, stop in zip(edges[::2], edges[1::2])]
+    # in a stretch, the T nearest to the guess (the misses there are all near-best)
+    found = [float(times[k][np.argmin(np.abs(np.log(times[k] / wrapper.T0)))]) for k in stretches]
+    return sorted(found, key=lambda T: abs(np.log(T / wrapper.T0))), bool(size.min() <= scale)
