@@ -31,6 +31,24 @@ def check_certified(result, residual_tol: float = RESIDUAL_TOL) -> None:
         assert np.all(np.abs(result.selections) <= 1.0 + residual_tol)
 
 
+def entry_point_groups(bodies) -> dict[str, dict[str, str]]:
+    """The `[project.entry-points."GROUP"]` sections of pyproject.toml texts: group → {key: value}
+    (the plugin-package tests read the guide's packaging this way, as an installer would)."""
+    groups: dict[str, dict[str, str]] = {}
+    for body in bodies:
+        group = None
+        for line in body.splitlines():
+            header = re.match(r'\[project\.entry-points\."([\w.]+)"\]', line.strip())
+            if header:
+                group = groups.setdefault(header.group(1), {})
+            elif line.strip().startswith("["):
+                group = None
+            elif group is not None and "=" in line:
+                key, value = (part.strip().strip('"') for part in line.split("=", 1))
+                group[key] = value
+    return groups
+
+
 @pytest.fixture
 def certified():
     """:func:`check_certified`, for tests in any folder."""

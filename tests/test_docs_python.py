@@ -33,6 +33,7 @@ import qdframe
 from qdframe import registry
 from qdframe.authoring import check_model
 from qdframe.model import InclusionModel
+from conftest import entry_point_groups
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = ("README.md", "docs/guide.md", "docs/authoring.md")
@@ -279,23 +280,13 @@ def my_models_tests(ns, out, tmp_path):
         match = re.match(r'"""my_models/(\w+\.py)', code)
         if match:
             (package / match.group(1)).write_text(code)
-    groups: dict[str, dict[str, str]] = {}
     tomls = re.findall(r"^```toml\n(.*?)^```", text, re.S | re.M)
     # "plus the scheme's section `[project.entry-points."qdframe.schemes"]` with `theta = …`"
     prose = re.search(r'plus the scheme\'s section `(\[project\.entry-points\."qdframe\.schemes"\])` with\s+`([^`]*)`',
                       text)
     assert prose, "section 6 names the scheme's entry point"
-    for body in [tomls[-1], f"{prose.group(1)}\n{prose.group(2)}\n"]:  # the whole pyproject.toml, then the scheme
-        group = None
-        for line in body.splitlines():
-            header = re.match(r'\[project\.entry-points\."([\w.]+)"\]', line.strip())
-            if header:
-                group = groups.setdefault(header.group(1), {})
-            elif line.strip().startswith("["):
-                group = None
-            elif group is not None and "=" in line:
-                key, value = (part.strip().strip('"') for part in line.split("=", 1))
-                group[key] = value
+    # the whole pyproject.toml, then the scheme
+    groups = entry_point_groups([tomls[-1], f"{prose.group(1)}\n{prose.group(2)}\n"])
     info = tmp_path / "pkg" / "my_models-0.1.0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-models\nVersion: 0.1.0\n")

@@ -15,6 +15,8 @@ from qdframe import registry
 from qdframe.authoring import check_model
 from qdframe.cli import main
 
+from conftest import entry_point_groups
+
 GUIDE = Path(__file__).resolve().parents[2] / "docs" / "authoring.md"
 
 
@@ -34,18 +36,7 @@ def guide_package(tmp_path, monkeypatch):
         if match:
             (package / match.group(1)).write_text(body)
     assert (package / "thermal.py").exists() and (package / "solvers.py").exists()
-    groups: dict[str, dict[str, str]] = {}
-    for body in _blocks("toml"):  # [project.entry-points."GROUP"] sections, key = "value" lines
-        group = None
-        for line in body.splitlines():
-            header = re.match(r'\[project\.entry-points\."([\w.]+)"\]', line.strip())
-            if header:
-                group = groups.setdefault(header.group(1), {})
-            elif line.strip().startswith("["):
-                group = None
-            elif group is not None and "=" in line:
-                key, value = (part.strip().strip('"') for part in line.split("=", 1))
-                group[key] = value
+    groups = entry_point_groups(_blocks("toml"))
     assert set(groups) == {"qdframe.models", "qdframe.directions", "qdframe.line_searches"}
     info = tmp_path / "my_models-0.1.0.dist-info"
     info.mkdir()
