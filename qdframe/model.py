@@ -50,8 +50,7 @@ ScalarPieces = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 # optimal-control hooks a user may write and qdframe does not read yet: a model that has one is
 # refused by name (it would be solved as if the hook were not there)
-NOT_YET = {"terminal_cost": "terminal (Mayer) cost", "control_bounds": "bounds on the controls",
-           "state_bounds": "bounds on the states (path constraints)"}
+NOT_YET: dict[str, str] = {}
 
 
 @dataclass(frozen=True)
@@ -205,6 +204,13 @@ class Cost:
     max_groups: tuple[ScalarPieces, ...] = ()
     min_groups: tuple[ScalarPieces, ...] = ()
     weight: float = 1.0
+    # optional: ∇²c(y) (N, w, w) of a smooth integrand (one max-group of one piece), y = (x, u);
+    # gauss-newton then models the cost to second order (its PSD part)
+    hessian: Callable[[np.ndarray], np.ndarray] | None = None
+    # optional: a terminal (Mayer) cost M(x(T)): x (n,) -> (value, gradient (n,), Hessian (n, n))
+    terminal: Callable[[np.ndarray], tuple[float, np.ndarray, np.ndarray]] | None = None
+    # the augmented Lagrangian's shifts (qdframe.functional.shifts.Shifts), set by qdframe.solve.optimum
+    shifts: object = None
 
 
 @dataclass(frozen=True)
@@ -256,6 +262,12 @@ class InclusionModel(ABC):
     # vs the known solution then covers them as well as x
     exact_T: ClassVar[float | None] = None
     exact_parameters: ClassVar[Mapping[str, float] | Sequence[float]] = {}  # {name: value} or values in order
+    # bounds lo ≤ u_j(t) ≤ hi on controls and lo ≤ x_i(t) ≤ hi on states (path constraints, held
+    # at every point of the scheme), {name: (lo, hi)}, ±inf for a free side (solved by gauss-newton)
+    control_bounds: ClassVar[Mapping[str, tuple[float, float]]] = {}
+    state_bounds: ClassVar[Mapping[str, tuple[float, float]]] = {}
+    # the least cost where it is known (with exact_solution): a `solved` result's cost is held to it
+    exact_cost: ClassVar[float | None] = None
 
     def __init__(
         self,
@@ -291,6 +303,7 @@ class InclusionModel(ABC):
                                   f"{self.T_bounds[1]:g}) (with 0 ≤ lo)", self.T)
         self.parameters = self._parameter_guesses(parameters)
         self.exact_parameters = self._exact_parameters()
+        self.bounds_table = self._bounds_table()
         self.x0 = _finite_vector("x0", self.default_x0 if x0 is None else x0, n, free=True)
         if end_values is not None and len(end_values) == n != len(self.end_indices):
             chosen = np.asarray(end_values, dtype=float)
@@ -335,6 +348,28 @@ class InclusionModel(ABC):
             if not lo < guess < hi:
                 raise InputError(f"parameters[{name!r}]", f"a starting guess inside its bounds ({lo:g}, {hi:g})", float(guess))
         return guesses
+
+    def _bounds_table(self) -> dict[str, tuple[float, float]]:
+        """`state_bounds` and `control_bounds` checked, as {name: (lo, hi)}: each name a state
+        or a control of the model, lo < hi, not both infinite."""
+        table: dict[str, tuple[float, float]] = {}
+        for attribute, names in (("state_bounds", self.state_names), ("control_bounds", self.control_names)):
+            given = getattr(type(self), attribute)
+            where = f"{type(self).__name__}.{attribute}"
+            if not isinstance(given, Mapping):
+                raise InputError(where, "{name: (lo, hi)}", given)
+            for name, bound in given.items():
+                if name not in names:
+                    raise InputError(f"{where}[{name!r}]", f"one of {', '.join(names) or '(none)'}", name)
+                try:
+                    lo, hi = (float(value) for value in bound)
+                except (TypeError, ValueError):
+                    raise InputError(f"{where}[{name!r}]", "(lo, hi): two numbers, ±inf for a free side",
+                                     bound) from None
+                if not (lo < hi) or np.isnan(lo) or np.isnan(hi) or (np.isinf(lo) and np.isinf(hi)):
+                    raise InputError(f"{where}[{name!r}]", "(lo, hi) with lo < hi, at most one side infinite", bound)
+                table[name] = (lo, hi)
+        return table
 
     def _exact_parameters(self) -> dict[str, float]:
         """`exact_parameters` as {name: value}, given as a mapping or as q values in

@@ -76,8 +76,8 @@ class VerdictRecord:
 
 @dataclass(frozen=True)
 class PenaltyRecord:
-    """A cost whose least value is not 0: the last penalty λ, the optimality gap 2λ·I, and
-    (λ, iterations) of each round."""
+    """A cost: the last penalty λ, the optimality gap (the multipliers' |yᵀr|, or 2λ·I where the
+    penalty is raised), and (λ, iterations) of each round (of the multipliers, or of the penalty)."""
 
     penalty: float
     optimality_gap: float

@@ -141,6 +141,7 @@ class Unknowns(InclusionModel):
         super().__init__(T=1.0 if self.scaled else model.T, x0=[*model.x0, *([np.nan] * len(extra))],
                          end_values=model.end_values, free_T=False, parameters=())
         self.constant_states = tuple(range(n, self.n_states))
+        self.bounds_table = dict(model.bounds_table)  # by name: the model's states keep their columns
         self.T_guess = self.T0  # the user's; a solve may start from a better one (qdframe.solve.start.swept_T)
 
     # -- the columns of y = (x, σ_p, σ_T, u) and the model's y = (x, p, u)
@@ -282,8 +283,26 @@ class Unknowns(InclusionModel):
         cost = self.inner.cost()
         if cost is None:
             return None
+        hessian = None
+        if cost.hessian is not None:  # (T·)∇²c on the columns of x and u (the unknowns' curvature left out)
+            def hessian(y: np.ndarray, inner=cost.hessian) -> np.ndarray:
+                n, m = self.n, self.n_controls
+                user = self._user(y)
+                own = np.r_[0:n, user.shape[1] - m:user.shape[1]]
+                mine = np.r_[0:n, self.width - m:self.width]
+                out = np.zeros((y.shape[0], self.width, self.width))
+                scale = self._T(y)[0][:, None, None] if self.scaled else 1.0
+                out[:, mine[:, None], mine[None, :]] = scale * np.asarray(inner(user))[:, own[:, None], own[None, :]]
+                return out
+        terminal = None
+        if cost.terminal is not None:  # M(x(T)) of the model's states (the unknowns' columns 0)
+            def terminal(x: np.ndarray, inner=cost.terminal) -> tuple[float, np.ndarray, np.ndarray]:
+                value, grad, hess = inner(x[: self.n])
+                g, H = np.zeros(x.size), np.zeros((x.size, x.size))
+                g[: self.n], H[: self.n, : self.n] = grad, hess
+                return value, g, H
         return Cost(tuple(self._scaled(g) for g in cost.max_groups), tuple(self._scaled(g) for g in cost.min_groups),
-                    cost.weight)
+                    cost.weight, hessian=hessian, terminal=terminal, shifts=cost.shifts)
 
     # -- starting guesses and the way back
     def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -53,7 +53,7 @@ def test_option_on_the_command_line(tmp_path, capsys):
     assert damped["direction"] == "gauss-newton"
     assert [h["objective"] for h in damped["history"]] == [h.objective for h in by_hand.history]
     assert damped["iterations"] == by_hand.iterations > default.iterations
-    assert damped["history"][1]["objective"] > 2 * default.history[1].objective  # the damped first step gains less
+    assert damped["history"][1]["objective"] > default.history[1].objective  # the damped first step gains less
     assert main(["solve", "paper-7.1", "--option", "mu"]) == 2
     assert "KEY=VALUE" in capsys.readouterr().err
     assert main(["solve", "paper-7.1", "--option", "bad=1"]) == 2

@@ -18,7 +18,7 @@ from qdframe.registry import names
 # the models whose pieces all carry the hook (checked, so that a model losing it is seen)
 COMPILED = {"block-breakaway", "block-stop-stick", "block-stop-stick-bvp", "block-stopping-time",
             "block-time-optimal", "coulomb-block", "coulomb-rest-to-rest", "disturbed-control",
-            "double-pendulum", "isotropic-puck", "isotropic-slide-3d", "orthotropic-puck", "paper-7.3",
+            "double-pendulum", "isotropic-puck", "least-effort-block", "least-effort-bounded", "lq-terminal", "isotropic-slide-3d", "orthotropic-puck", "paper-7.3",
             "paper-7.3-reduced", "pivot-friction-pendulum", "relay-oscillator", "relay-period",
             "slide-after-reaching", "slide-on-line", "sliding-mode", "sliding-mode-terminal",
             "stick-slip-oscillator", "two-block-chain", "two-surface-sliding", "velocity-range"}

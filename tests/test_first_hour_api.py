@@ -208,10 +208,11 @@ def test_gauss_newton_solves_paper_71_whatever_the_rounding_of_its_last_qp(nodes
     assert result.solved and result.iterations <= 4
 
 
-@pytest.mark.parametrize("hook", ["terminal_cost", "control_bounds", "state_bounds"])
-def test_an_optimal_control_hook_qdframe_would_ignore_is_refused_by_name(hook):
-    """Issue 53: a terminal cost or bounds written on a model were silently dropped (a terminal
-    cost ignored gave `solved` with J = 0); until they are solved, the model is refused naming them."""
+def test_the_optimal_control_hooks_are_honoured():
+    """Issue 53: a terminal cost and a control bound written on a model were silently dropped (the
+    terminal cost ignored gave `solved` with J = 0); now they are solved: J* = 850/23 = 36.96 for
+    ∫u² + 50·((p(1) − 2)² + v(1)²) from rest, and |u| ≤ 8 binds at both ends (unbounded,
+    u* = 18.48·(1 − t) − 9.06)."""
     from qdframe.sets import SetModel
 
     class Effort(SetModel):
@@ -222,6 +223,16 @@ def test_an_optimal_control_hook_qdframe_would_ignore_is_refused_by_name(hook):
         def sets(self, p, v, u):
             return {p: v, v: u}
 
-    setattr(Effort, hook, {"u": (-1.8, 1.8)} if hook.endswith("bounds") else (lambda self, p, v: (p - 2) ** 2))
-    with pytest.raises(qdframe.InputError, match=rf"^Effort\.{hook}: expected no {hook}: .* would ignore it"):
-        Effort()
+        def running_cost(self, p, v, u):
+            return u**2
+
+        def terminal_cost(self, p, v):
+            return 50 * ((p - 2) ** 2 + v**2)
+
+    free = qdframe.solve(Effort())
+    assert free.solved and free.cost == pytest.approx(850 / 23, rel=1e-6)
+    Effort.control_bounds = {"u": (-8.0, 8.0)}
+    bounded = qdframe.solve(Effort())
+    u = np.asarray(bounded.u)[1:, 0]
+    assert bounded.solved and float(np.max(np.abs(u))) <= 8.0 + 1e-8 and u[0] == pytest.approx(8.0)
+    assert bounded.cost > free.cost + 0.05

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import qdframe
+from qdframe.descent import multipliers
 from qdframe.solve import optimum
 from qdframe.descent.loop import DescentOptions, descend
 from qdframe.directions.base import Direction, DirectionSolver
@@ -52,9 +53,12 @@ def test_the_penalty_is_raised_from_the_models_own(fastest):
 
 
 def test_a_cost_with_minimum_zero_takes_one_round():
-    """paper-7.1 (∫|x1| dt, zero on its solution): the paper's λ = 10 is kept."""
+    """paper-7.1 (∫|x1| dt, zero on its solution): one round of the method of multipliers, at
+    λ = max(the paper's 10, MULTIPLIER_START), with no shift (qdframe.descent.multipliers)."""
     result = qdframe.solve("paper-7.1", nodes=101)
-    assert result.options["penalty_rounds"] == [(10.0, result.iterations)] and result.options["penalty"] == 10.0
+    assert result.solved
+    assert result.options["penalty_rounds"] == [(multipliers.MULTIPLIER_START, result.iterations)]
+    assert result.options["penalty"] == multipliers.MULTIPLIER_START
 
 
 def _result(status: Status, I: float, checks: dict | None = None, stationary: bool = False) -> SimpleNamespace:

@@ -117,7 +117,11 @@ def initial_value_problem(functional: Functional) -> bool:
 
 def certificate_for(functional: Functional) -> str:
     """replay where the solutions form a set or the problem is an initial-value problem
-    (there it measures the true error), bisection where a boundary-value problem has one solution."""
+    (there it measures the true error), bisection where a boundary-value problem has one solution
+    or a cost picks one (the optimum: a replay would measure the distance to the motion under the
+    controls found, not to the optimal one)."""
+    if functional.cost is not None:
+        return BISECTION
     return REPLAY if solutions_form_a_set(functional) or initial_value_problem(functional) else BISECTION
 
 
@@ -357,6 +361,8 @@ def dense(grid: Grid, values: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 
 def like(functional: Functional, grid: Grid, signs: str | None = None) -> Functional:
-    """A functional of the same model and sign treatment (or `signs`) on `grid`."""
-    return Functional(functional.model, grid, signs=functional.signs if signs is None else signs,
-                      selection_scale=functional.selection_scale, inputs=functional.inputs)
+    """A functional of the same model and sign treatment (or `signs`) on `grid`, with its cost's λ and shifts."""
+    out = Functional(functional.model, grid, signs=functional.signs if signs is None else signs,
+                     selection_scale=functional.selection_scale, inputs=functional.inputs)
+    out.take_multipliers(functional)  # a cost's λ and shifts (qdframe.descent.multipliers)
+    return out

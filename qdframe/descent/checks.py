@@ -12,11 +12,13 @@ inclusion                 max_k dist(z_k, F(x_k, u_k)) (φ's h_b)      residual_
 selection                 max |λ − clip(λ + s, −1, 1)| (λ ∈ Sgn(s))   residual_tol
 consistency               max_k |x_k − x(t_0) − ∫_0^{t_k} z|          residual_tol·scale_x
 surface                   max_k |e(x_k)|                              residual_tol·scale_x
+bounds                    max_k max(0, y_j − hi_j, lo_j − y_j)        residual_tol·scale_y
 ========================  ==========================================  =====================
 
 (A vector sign's selection λ ∈ B, isotropic friction, has λ − P_B(λ + s), P_B the projection
 onto the unit ball, in place of the clip.) scale_x = max(1, max |x|) and scale_z = max(1,
-max |z|) over the trajectory: a problem
+max |z|) over the trajectory (scale_y = max(1, max |y_j|) of the bounded states and controls,
+``state_bounds`` and ``control_bounds``): a problem
 whose states are of size 1e3 gets tolerances 1e3 times larger, one of size 1e-3 keeps
 the absolute tolerance. x(t_0) = x0 holds exactly (x0 is data, not an unknown).
 
@@ -74,6 +76,10 @@ def checks(functional: Functional, xi: np.ndarray, residual_tol: float) -> list[
     out.append(Check("consistency", residuals.consistency_error, tol_x))
     if residuals.surface_error is not None:
         out.append(Check("surface", residuals.surface_error, tol_x))
+    if functional.bounds is not None:
+        y = functional.arguments(xi)[:, functional.bounds.columns]
+        violation = float(np.max(np.maximum(functional.values.bound_sides(functional.arguments(xi)), 0.0)))
+        out.append(Check("bounds", violation, residual_tol * max(1.0, float(np.max(np.abs(y))))))
     return out
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from . import checks
+from . import checks, multipliers
 from .checks import CERTIFY_SHRINK
 from ..directions.base import DirectionSolver
 from ..errors import BackendError, ModelOutputError
@@ -75,7 +75,22 @@ def descend(
     core (`qdframe bench scale`, docs/benchmarks.md).
     """
     with _blas().limit(limits=1, user_api="blas"):
-        return _descend(functional, solver, search, options, progress, start, near_solution)
+        if multipliers.applies(functional, solver):  # a cost: its optimum (.multipliers), λ ≥ MULTIPLIER_START
+            functional.set_multipliers(functional.shifts, max(functional.penalty, multipliers.MULTIPLIER_START))
+        result = _descend(functional, solver, search, options, progress, start, near_solution)
+        if multipliers.applies(functional, solver) and options.max_iter > 0:
+            first = _started(functional, start)[0]
+
+            def again(xi: np.ndarray, budget: int) -> SolveResult:
+                return _descend(functional, solver, search, dataclasses.replace(options, max_iter=budget), progress,
+                                xi, True)
+
+            def full_step(xi: np.ndarray) -> np.ndarray:
+                solver.start(functional)
+                return xi + solver.compute(functional, xi, options.delta).step
+
+            result = multipliers.rounds(functional, result, again, first, options.max_iter, full_step)
+        return result
 
 
 @functools.cache

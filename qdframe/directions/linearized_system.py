@@ -133,6 +133,12 @@ def _live(col: np.ndarray, val: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (col, val) if live.all() else (col[:, live], val[:, live])
 
 
+def _psd_factor(hessian: np.ndarray) -> np.ndarray:
+    """L (N, w, w) with LᵀL = [H]₊, the positive semidefinite part of each symmetric H (N, w, w)."""
+    values, vectors = np.linalg.eigh(0.5 * (hessian + np.swapaxes(hessian, 1, 2)))
+    return np.sqrt(np.maximum(values, 0.0))[:, :, None] * np.swapaxes(vectors, 1, 2)
+
+
 def _frozen(array: np.ndarray) -> np.ndarray:
     array.flags.writeable = False  # shared by the steps of a solve
     return array
@@ -197,6 +203,7 @@ class LinearizedSystem:
     def __init__(self, functional: "Functional", xi: np.ndarray, delta: float, value: float | None = None,
                  skeleton: Skeleton | None = None) -> None:
         self.f = functional
+        self._xi = xi
         skeleton = skeleton if skeleton is not None else Skeleton(functional)
         self.skeleton = skeleton
         self.n, self.m, self.nodes, self.width, self.size = (skeleton.n, skeleton.m, skeleton.nodes, skeleton.width,
@@ -205,6 +212,8 @@ class LinearizedSystem:
         self.penalty = functional.penalty
         self.value = functional.objective(xi) if value is None else value
         blocks = functional.distance_sides(xi)
+        self.shifts = functional.shifts  # the augmented Lagrangian's (qdframe.functional.shifts), or None
+        self.block_index = [b for b, block in enumerate(blocks) if not block.equation]  # each side's block
         self.sides = [block for block in blocks if not block.equation]  # sets: one-sided hinges
         # z_b = f_b(y): least squares, their sides not kept past J (at N = 1e5 on 7.3, 46 MB)
         # the constant states whose own rows vanish on the reduced columns (with x_i(t_0) given they do not)
@@ -212,8 +221,14 @@ class LinearizedSystem:
         self._still_entries: list[Callable[[], tuple[np.ndarray, np.ndarray]]] = []  # their rows' (:meth:`still`)
         self._still: sp.csr_matrix | None = None
         self.residual, self.jacobian, self.still_residual = self._least_squares(
-            xi, [block for block in blocks if block.equation])
+            xi, [(b, block) for b, block in enumerate(blocks) if block.equation])
         del blocks
+        self.terminal_value = 0.0  # M(x(T)) of a terminal cost and its gradient (:meth:`_curvature`)
+        self.terminal_gradient: np.ndarray | None = None
+        curvature = _curvature(self, xi)  # the cost's second-order model, as rows of zero residual
+        if curvature is not None:
+            self.jacobian = sp.vstack([self.jacobian, curvature], format="csr")
+            self.residual = np.concatenate([self.residual, np.zeros(curvature.shape[0])])
         self.constraints = skeleton.constraints
         # the cost's max- and min-groups: (values (N, q), gradients (N, q, n + m)) each, a 0
         # column for each selection λ (the cost is a function of (x, u) alone)
@@ -279,7 +294,10 @@ class LinearizedSystem:
             self._still_entries.append(entries)
             still_residuals.append(res)
 
+        shifts = self.shifts
         consistency = f.consistency(xi)  # υ, one row per node and state: x_k − x_0 − Z_k
+        if shifts is not None:
+            consistency = consistency + shifts.consistency
         x_cols, Z_cols = self.x_cols(), self.Z_cols()
 
         def upsilon(states: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray]:
@@ -297,6 +315,8 @@ class LinearizedSystem:
         if constant.any():
             add_still((root_w[:, None] * consistency[:, constant]).ravel(), lambda: upsilon(constant))
         end = f.end_residual(xi)  # χ: x_j(0) + Z_{N−1,j} − xT_j (j ∈ J), then Z_{N−1,i} (i ∈ P)
+        if shifts is not None:
+            end = end + shifts.end
         if end.size:
             coords = np.concatenate([f.end, f.periodic])
             starts = np.concatenate([~f.start_given[f.end], np.zeros(f.periodic.size, dtype=bool)])
@@ -304,13 +324,17 @@ class LinearizedSystem:
                 np.stack([np.ones(end.size), starts.astype(float)], axis=1))
         if f.surface is not None:  # ω
             e, de = f.surface_values(xi)
+            if shifts is not None:
+                e = e + shifts.surface
             o = e.shape[1]
             add((root_w[:, None] * e).ravel(),
                 np.repeat(x_cols[:, None, :], o, axis=1).reshape(nodes * o, self.n),
                 (root_w[:, None, None] * de).reshape(nodes * o, self.n))
         y_cols, z_cols = self.y_cols(), self.z_cols()
-        for block in equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
+        for b, block in equations:  # φ of a point set: √w·(z_b − f_b(y)), a plain residual
             (ell, dell_dy, psi), = block.sides
+            if shifts is not None:
+                ell = ell + shifts.blocks[:, b, 0]
 
             def phi(block=block, dell_dy=dell_dy, psi=psi) -> tuple[np.ndarray, np.ndarray]:
                 return (np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1),
@@ -321,19 +345,7 @@ class LinearizedSystem:
             else:
                 add(root_w * ell, *phi())
         if f.p:  # σ: the selections' natural map
-            r, dr = f.selection_residual(xi)
-            cols = np.repeat(y_cols[:, None, :], f.p, axis=1)  # (N, p, width)
-            vals = root_w[:, None, None] * dr
-            left, held = f.left_limits(f.selections(xi))  # r_k = λ_k − λ_{k−1}: a −1 on λ_{k−1}
-            if left.size:
-                lam_cols = self.u_cols()[:, f.m :]  # (N, p)
-                extra_cols = lam_cols.copy()[:, :, None]  # elsewhere a zero on the row's own λ (left out)
-                extra_vals = np.zeros((nodes, f.p, 1))
-                extra_cols[left, :, 0] = lam_cols[left - 1]
-                extra_vals[left, :, 0] = np.where(held, -root_w[left, None], 0.0)
-                cols = np.concatenate([cols, extra_cols], axis=2)
-                vals = np.concatenate([vals, extra_vals], axis=2)
-            add((root_w[:, None] * r).ravel(), cols.reshape(nodes * f.p, -1), vals.reshape(nodes * f.p, -1))
+            _selection_rows(self, xi, root_w, add)
         if f.held is not None:  # η: √w_{k,i}·(c_{k,i} − c_{k,s}), the held choices (functional.held)
             add(*_held_rows(f, xi, y_cols, z_cols, root_w))
         return np.concatenate(residuals), rows.matrix(), np.concatenate(still_residuals or [np.zeros(0)])
@@ -402,11 +414,20 @@ class LinearizedSystem:
         y_cols, z_cols = self.y_cols(), self.z_cols()
         rows = RowBlocks(self.size)  # exactly-zero coefficients left out (:mod:`.sparse_rows`)
         values = []
-        for block in self.sides:
+        shifts = self.shifts
+        for b, block in zip(self.block_index, self.sides):
             block_cols = np.concatenate([y_cols, z_cols[:, list(block.coords)]], axis=1)
-            for ell, dell_dy, psi in block.sides:
+            for side, (ell, dell_dy, psi) in enumerate(block.sides):
                 rows.add(block_cols, root_w[:, None] * np.concatenate([dell_dy, psi], axis=1))
-                values.append(root_w * ell)
+                values.append(root_w * (ell if shifts is None else ell + shifts.blocks[:, b, side]))
+        bounds = self.f.bounds
+        if bounds is not None:  # β: √w_k·sense·(y_j − limit), one row per node and finite side
+            sides = self.f.values.bound_sides(self.f.arguments(self._xi))
+            if shifts is not None:
+                sides = sides + shifts.bounds
+            q = bounds.columns.size
+            rows.add(y_cols[:, bounds.columns].reshape(-1, 1), np.repeat(root_w, q)[:, None] * np.tile(bounds.sense, self.nodes)[:, None])
+            values.append((root_w[:, None] * sides).ravel())
         if not rows.rows:
             return sp.csr_matrix((0, self.size)), np.zeros(0)
         return rows.matrix(), np.concatenate(values)
@@ -419,6 +440,8 @@ class LinearizedSystem:
             for values, grads in self.min_groups:
                 pick = grads[np.arange(self.nodes), np.argmin(values, axis=1)]
                 np.add.at(min_linear, y_cols.ravel(), (self.f.weights[:, None] * pick).ravel())
+            if self.terminal_gradient is not None:  # ∇M(x(T))·dx_{N−1}
+                min_linear[self.x_cols()[-1]] += self.terminal_gradient
             self._min_linear = min_linear
         return self._min_linear
 
@@ -432,12 +455,15 @@ class LinearizedSystem:
         max-groups at their linearized maximum and min-groups at their linearized active piece
         (predicted_sides: v + Ad, the hinge rows at d)."""
         w = self.f.weights
+        if self.shifts is not None:  # the objective is the shifted one less its constant: the change itself
+            return _shifted_decrease(self, d, predicted_sides)
         squares = np.sum((self.residual + self.jacobian @ d) ** 2)
         if self._still_moves(d):
             squares += np.sum((self.still_residual + self.still() @ d) ** 2)
         model = 0.5 * self.penalty * (squares + np.sum(np.maximum(predicted_sides, 0.0) ** 2))
         model += sum(float(w @ predicted.max(axis=1)) for predicted in self.max_pieces(d))
         model += float(self.min_linear() @ d) + sum(float(w @ values.min(axis=1)) for values, _ in self.min_groups)
+        model += self.terminal_value
         return float(self.value - model)
 
     def slope(self, d: np.ndarray, gradient: np.ndarray) -> float:
@@ -451,3 +477,87 @@ class LinearizedSystem:
             slope += float(w @ np.max(np.where(active, np.einsum("kqp,kp->kq", grads, dy), -np.inf), axis=1))
         return slope
 
+
+def _curvature(self: "LinearizedSystem", xi: np.ndarray) -> sp.csr_matrix | None:
+    """The cost's second-order part as rows C with λ·CᵀC = Σ_k w_k [∇²c(y_k)]₊ (+ [∇²M(x(T))]₊),
+    [·]₊ the positive semidefinite part (eigenvalues below 0 cut to 0): appended to J with
+    residual 0, they add the cost's curvature to the step's Hessian λJᵀJ + μW (a smooth
+    integrand's `hessian`, a terminal cost's). None where the cost has neither. Also sets
+    the terminal cost's value and gradient (:meth:`min_linear`)."""
+    cost = self.f.cost
+    if cost is None or (cost.hessian is None and cost.terminal is None):
+        return None
+    rows = RowBlocks(self.size)
+    scale = 1.0 / np.sqrt(self.penalty)
+    if cost.hessian is not None:
+        y = self.f.arguments(xi)
+        hessian = np.asarray(cost.hessian(y), float)
+        self.f.pieces.check("cost Hessian", hessian, (self.nodes, y.shape[1], y.shape[1]))
+        factor = _psd_factor(hessian) * (scale * np.sqrt(self.f.weights))[:, None, None]  # (N, w, w)
+        width = y.shape[1]
+        cols = np.repeat(self.y_cols()[:, None, : width], width, axis=1)
+        rows.add(*_live(cols.reshape(-1, width), factor.reshape(-1, width)))
+    if cost.terminal is not None:
+        x_T = self.f.split(xi)[0][-1]
+        value, gradient, hessian = cost.terminal(x_T)
+        self.terminal_value, self.terminal_gradient = float(value), np.asarray(gradient, float)
+        factor = scale * _psd_factor(np.asarray(hessian, float)[None])[0]
+        n = x_T.size
+        rows.add(*_live(np.repeat(self.x_cols()[-1][None, :], n, axis=0), factor))
+    return rows.matrix() if rows.rows else None
+
+
+def _shifted_decrease(self: "LinearizedSystem", d: np.ndarray, predicted_sides: np.ndarray) -> float:
+    """:meth:`decrease` as the model's change from d = 0, term by term (with the augmented
+    Lagrangian's shifts the model's value is ½λ·Σs² above the objective's, a constant that
+    can be 1e8 times the change near the optimum: the difference of the two would be rounding)."""
+    w = self.f.weights
+    Jd = self.jacobian @ d
+    change = float(self.residual @ Jd) + 0.5 * float(Jd @ Jd)
+    if self._still_moves(d):
+        still = self.still() @ d
+        change += float(self.still_residual @ still) + 0.5 * float(still @ still)
+    values = self.hinges()[1]
+    change += 0.5 * float(np.sum(np.maximum(predicted_sides, 0.0) ** 2 - np.maximum(values, 0.0) ** 2))
+    model = self.penalty * change
+    model += sum(float(w @ (predicted.max(axis=1) - values.max(axis=1)))
+                 for predicted, (values, _) in zip(self.max_pieces(d), self.max_groups))
+    model += float(self.min_linear() @ d)
+    return -model
+
+
+def _selection_rows(self: "LinearizedSystem", xi: np.ndarray, root_w: np.ndarray,
+                    add: Callable[[np.ndarray, np.ndarray, np.ndarray], None]) -> None:
+    """σ's rows, √w_k·(r + s) of every selection with one generalized-Jacobian element (a held
+    left limit's r_k = λ_k − λ_{k−1}: a −1 on λ_{k−1}); with shifts, a selection within reach of
+    its natural map's kink has both branches' rows, each with half the weight."""
+    f, nodes, shifts = self.f, self.nodes, self.shifts
+    y_cols = self.y_cols()
+    r, dr = f.selection_residual(xi)
+    if shifts is not None:
+        r = r + shifts.selections
+    cols = np.repeat(y_cols[:, None, :], f.p, axis=1)  # (N, p, width)
+    vals = root_w[:, None, None] * dr
+    left, held = f.left_limits(f.selections(xi))  # r_k = λ_k − λ_{k−1}: a −1 on λ_{k−1}
+    if left.size:
+        lam_cols = self.u_cols()[:, f.m :]  # (N, p)
+        extra_cols = lam_cols.copy()[:, :, None]  # elsewhere a zero on the row's own λ (left out)
+        extra_vals = np.zeros((nodes, f.p, 1))
+        extra_cols[left, :, 0] = lam_cols[left - 1]
+        extra_vals[left, :, 0] = np.where(held, -root_w[left, None], 0.0)
+        cols = np.concatenate([cols, extra_cols], axis=2)
+        vals = np.concatenate([vals, extra_vals], axis=2)
+    kinks = None
+    if shifts is not None:  # a shift makes a kink first-order: its two branches both modelled
+        kinks = f.values.selection_kinks(xi, 2.0 * np.abs(shifts.selections))
+        kinks = kinks if kinks.any() else None
+    if kinks is not None:
+        half = np.where(kinks, np.sqrt(0.5), 1.0)
+        vals = vals * half[:, :, None]
+    add((root_w[:, None] * r * (1.0 if kinks is None else half)).ravel(), cols.reshape(nodes * f.p, -1),
+        vals.reshape(nodes * f.p, -1))
+    if kinks is not None:  # ½(r + s)² as ¼ on each branch's linearization
+        other = f.values.selection_residual(xi, flip=kinks)[1]
+        node, column = np.nonzero(kinks)
+        add(np.sqrt(0.5) * root_w[node] * r[node, column], y_cols[node],
+            np.sqrt(0.5) * root_w[node, None] * other[node, column])

@@ -50,7 +50,8 @@ from .held import HeldChoices
 from .jacobians import DistanceSides, Jacobians
 from .layout import Layout, SelectionGroup
 from .pieces import Pieces
-from .terms import Residuals, Terms, Values
+from .shifts import Shifts
+from .terms import Bounds, Residuals, Terms, Values
 
 __all__ = ["INPUT_MODES", "SIGN_MODES", "DistanceSides", "Functional", "Residuals", "SelectionGroup", "Terms"]
 
@@ -109,17 +110,48 @@ class Functional(Layout):
             probe = np.concatenate([np.nan_to_num(model.x0), np.zeros(self.m)])[None, :]
             held = held if held.pairs.size and held.coords(probe) else None
         self.held = held
+        shifts = cost.shifts.at(grid.t) if cost is not None and cost.shifts is not None else None
         self.values = Values(
             layout=self, grid=grid, pieces=self.pieces, surface=surface, cost=cost,
             penalty=float(cost.weight) if cost is not None else 1.0,
             end=np.asarray(model.end_indices, dtype=int), periodic=np.asarray(model.periodic, dtype=int),
-            end_values=model.end_values, selection_scale=float(selection_scale), held=self.held)
+            end_values=model.end_values, selection_scale=float(selection_scale), held=self.held,
+            shifts=shifts, bounds=_bounds(model))
         self.assembly = Quasidifferentials(layout=self, grid=grid, pieces=self.pieces, values=self.values)
         self.jacobians = Jacobians(layout=self, pieces=self.pieces, cost=cost)
 
     @property
     def weights(self) -> np.ndarray:
         return self.grid.weights
+
+    @property
+    def shifts(self) -> Shifts | None:
+        """The augmented Lagrangian's shifts on this grid (:mod:`.shifts`), or None."""
+        return self.values.shifts
+
+    @property
+    def bounds(self) -> Bounds | None:
+        """The finite sides of the model's state and control bounds (:class:`~.terms.Bounds`), or None."""
+        return self.values.bounds
+
+    def set_multipliers(self, shifts: Shifts | None, weight: float) -> None:
+        """The augmented Lagrangian's shifts (on this grid's nodes) and penalty λ from here on
+        (:mod:`qdframe.descent.multipliers`)."""
+        self.values.shifts = shifts
+        self.values.penalty = float(weight)
+
+    def take_multipliers(self, other: "Functional") -> None:
+        """Another functional's λ and shifts (interpolated to this grid), where it has a cost
+        and moved them: a finer grid starts from a coarser one's multipliers."""
+        if self.cost is not None and other.cost is not None and (other.shifts is not None
+                                                                 or other.penalty != self.penalty):
+            same = other.shifts is not None and other.signs == self.signs  # (a band start's sets are not ours)
+            self.set_multipliers(other.shifts.at(self.grid.t) if same else None, other.penalty)
+
+    def constraint_residuals(self, xi: np.ndarray) -> Shifts:
+        """Every residual behind I, unshifted (:meth:`.terms.Values.constraint_residuals`)."""
+        x, z = self.split(xi)
+        return self.values.constraint_residuals(x, self.arguments(xi), z, self.selections(xi))
 
     # the problem's data, kept by the parts that use them
     @property
@@ -257,3 +289,22 @@ class Functional(Layout):
                     f"{node} (t = {t[node]:.6g}); a starting guess must be finite everywhere (a free x_i(0) too)",
                     label=f"initial {label}", node=node, nonfinite=True)
         return self.pack(np.asarray(x, float), np.asarray(z, float), np.asarray(u, float))
+
+
+def _bounds(model: InclusionModel) -> Bounds | None:
+    """The model's `state_bounds` and `control_bounds` (its checked `bounds_table`) as the
+    finite sides of y = (x, u), or None without bounds."""
+    table = getattr(model, "bounds_table", None) or {}
+    names = [*model.state_names, *model.control_names]
+    columns, sense, limit, labels = [], [], [], []
+    for name, (lo, hi) in table.items():
+        column = names.index(name)
+        for side, value, label in ((1.0, hi, f"{name} ≤ {hi:g}"), (-1.0, lo, f"{name} ≥ {lo:g}")):
+            if np.isfinite(value):
+                columns.append(column)
+                sense.append(side)
+                limit.append(value)
+                labels.append(label)
+    if not columns:
+        return None
+    return Bounds(np.asarray(columns, dtype=int), np.asarray(sense), np.asarray(limit), tuple(labels))

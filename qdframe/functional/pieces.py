@@ -338,6 +338,14 @@ class Pieces:
         """h_b = max(0, ℓ(+1), ℓ(−1)) of a one-coordinate block from the pieces' values alone:
         :meth:`state_1d`'s h, bit for bit, with the pieces that do not depend on ψ evaluated
         once, in its order (a NaN names the same piece)."""
+        plus, minus, _ = self.interval_sides(block, y, z, selections)
+        return np.maximum(0.0, np.maximum(plus, minus))
+
+    def interval_sides(self, block: SetBlock, y: np.ndarray, z: np.ndarray,
+                       selections: list | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
+        """ℓ(+1) and ℓ(−1) of a one-coordinate block from the pieces' values alone, and whether
+        its set is a point (one-piece max-groups, no min-groups, every sign term with its
+        selection: then ℓ(−1) = −ℓ(+1), z_b − f_b(y), an equation)."""
         nodes = y.shape[0]
         selections = selections or [None] * len(block.signs)
 
@@ -365,7 +373,9 @@ class Pieces:
                           if term.ball is not None else _band_kappa(term.band, s, psi * term.sense)[0]) * amplitude
             return value
 
-        return np.maximum(0.0, np.maximum(ell(1.0, upper), ell(-1.0, lower)))
+        point = not block.min_groups and all(f.shape[1] == 1 for f in maxes) and all(
+            selection is not None for selection in selections)
+        return ell(1.0, upper), ell(-1.0, lower), point
 
 
 def _faces(block: SetBlock, y: np.ndarray, zb: np.ndarray, side: _Side,

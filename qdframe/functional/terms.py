@@ -15,7 +15,7 @@ I = φ + χ + ω + υ + σ; the objective is ∫cost + λ·I with a cost (Exampl
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from ..model import Cost, Surface
 from .held import HeldChoices
 from .layout import Layout
 from .pieces import Pieces, _reduce_last
+from .shifts import Shifts, equation_part, shifted_sums
 
 SATURATED = 1e-6  # |λ| ≥ 1 − this: a selection at an end of its set, off its surface (as qdframe.certificates.switches)
 
@@ -41,6 +42,17 @@ class Terms:
     I: float
     objective: float
     eta: float = 0.0  # the held choices' term (qdframe.functional.held; 0 with inputs free)
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """The finite sides of the bounds lo_j ≤ y_j ≤ hi_j on the states and controls, y = (x, u):
+    side i is sense_i·(y_{column_i} − limit_i) ≤ 0 (an upper bound: +1 and hi, a lower: −1 and lo)."""
+
+    columns: np.ndarray  # (q,) int
+    sense: np.ndarray  # (q,) ±1.0
+    limit: np.ndarray  # (q,)
+    names: tuple[str, ...] = ()  # "u ≤ 2", … (what binds, in messages)
 
 
 @dataclass(frozen=True)
@@ -70,15 +82,26 @@ class Values:
     end_values: np.ndarray  # xT_j, j ∈ J
     selection_scale: float  # c of σ's natural map
     held: "HeldChoices | None" = None  # η, with inputs="held" (:mod:`.held`)
+    shifts: Shifts | None = None  # the augmented Lagrangian's, on the grid's nodes (:mod:`.shifts`)
+    bounds: "Bounds | None" = None  # lo ≤ y_j ≤ hi of the bounded states and controls (β)
 
     def terms(self, xi: np.ndarray) -> Terms:
         """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
         x, z = self.layout.split(xi)
         phi, omega, sigma, cost, eta = self._set_terms(xi)
-        chi = 0.5 * float(np.sum(self.end_residual(x, z) ** 2))
-        upsilon = 0.5 * self.integral(np.sum(self.consistency(x, z) ** 2, axis=1))
+        shifts = self.shifts
+        if shifts is None:
+            chi = 0.5 * float(np.sum(self.end_residual(x, z) ** 2))
+            upsilon = 0.5 * self.integral(np.sum(self.consistency(x, z) ** 2, axis=1))
+        else:  # ½(r + s)² − ½s² = r·(½r + s): the shifted square less its constant (:meth:`_shifted_set_terms`)
+            end, consistency = self.end_residual(x, z), self.consistency(x, z)
+            chi = float(np.sum(equation_part(end, shifts.end)))
+            upsilon = self.integral(np.sum(equation_part(consistency, shifts.consistency), axis=1))
         total = phi + chi + omega + upsilon + sigma + eta
         objective = cost + self.penalty * total if self.cost is not None else total
+        if shifts is not None:  # the terms and I unshifted (what the checks read); the objective shifted
+            plain = replace(self, shifts=None).terms(xi)
+            return replace(plain, objective=objective)
         return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective, eta)
 
     def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
@@ -93,14 +116,19 @@ class Values:
         x, z = self.layout.split(xi)
         dx, dz = self.layout.split(direction)
         zero = np.zeros_like(dx)
-        quadratic = _Parabola.along(  # υ and χ: each (r(ξ), r's change per unit γ, w)
-            (self.consistency(x, z), self.consistency(dx, dz), self.grid.weights[:, None]),
-            (self.end_residual(x, z), self.end_residual(dx, dz) - self.end_residual(zero, zero), 1.0),
-        )
+        terms = ((self.consistency(x, z), self.consistency(dx, dz), self.grid.weights[:, None]),
+                 (self.end_residual(x, z), self.end_residual(dx, dz) - self.end_residual(zero, zero), 1.0))
+        quadratic = _Parabola.along(*terms)  # υ and χ: each (r(ξ), r's change per unit γ, w)
+        linear = (0.0, 0.0)  # with shifts s, Σ w·s·r(ξ + γG) (r·(½r + s), :meth:`terms`): its value and slope
+        if self.shifts is not None:
+            (r, d, w), (end, end_d, _) = terms
+            s, s_end = self.shifts.consistency, self.shifts.end
+            linear = (float(np.sum(w * s * r)) + float(np.sum(s_end * end)),
+                      float(np.sum(w * s * d)) + float(np.sum(s_end * end_d)))
 
         def objective(gamma: float) -> float:
             phi, omega, sigma, cost, eta = self._set_terms(xi + gamma * direction)
-            total = phi + quadratic(gamma) + omega + sigma + eta
+            total = phi + quadratic(gamma) + linear[0] + gamma * linear[1] + omega + sigma + eta
             return cost + self.penalty * total if self.cost is not None else total
 
         return objective
@@ -109,12 +137,52 @@ class Values:
         """φ, ω, σ, the cost and η at ξ, the terms not quadratic in ξ, from the pieces' values."""
         x, z = self.layout.split(xi)
         y, lam = self.layout.arguments(xi), self.layout.selections(xi)
+        if self.shifts is not None:
+            return self._shifted_set_terms(xi, x, y, z, lam)
         phi = 0.5 * self.integral(sum(h**2 for h in self._distances(y, z, lam)))
+        if self.bounds is not None:  # β: the bounds' sides, one-sided like φ's
+            phi += 0.5 * self.integral(np.sum(np.maximum(self.bound_sides(y), 0.0) ** 2, axis=1))
         omega = 0.5 * self.integral(np.sum(self.surface_at(x)[0] ** 2, axis=1)) if self.surface is not None else 0.0
         sigma = 0.5 * self.integral(np.sum(self._natural_map(y, lam) ** 2, axis=1)) if self.layout.p else 0.0
-        cost = self.integral(self._cost_integrand(y)) if self.cost is not None else 0.0
+        cost = self.cost_value(x, y) if self.cost is not None else 0.0
         eta = self.held.eta(xi) if self.held is not None else 0.0
         return phi, omega, sigma, cost, eta
+
+    def _shifted_set_terms(self, xi: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                           lam: np.ndarray) -> tuple[float, float, float, float, float]:
+        """φ (with the bounds' β), ω, σ, the cost and η with the augmented Lagrangian's shifts
+        (:func:`.shifts.shifted_sums`)."""
+        phi, omega, sigma = shifted_sums(self.constraint_residuals(x, y, z, lam), self.shifts, self.integral)
+        cost = self.cost_value(x, y) if self.cost is not None else 0.0
+        eta = self.held.eta(xi) if self.held is not None else 0.0  # (η: no multipliers)
+        return phi, omega, sigma, cost, eta
+
+    def constraint_residuals(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> Shifts:
+        """Every residual behind I, unshifted, in the form of :class:`~.shifts.Shifts` (on the
+        grid's nodes): υ, χ, e(x), each block's sides ℓ(+1), ℓ(−1) (a point set: its equation
+        z_b − f_b(y) and 0; an S_k block: ℓ(ψ*) and 0), σ's natural map, the bounds' sides."""
+        nodes, blocks = y.shape[0], self.layout.blocks
+        sides = np.zeros((nodes, len(blocks), 2))
+        point = np.zeros(len(blocks), dtype=bool)
+        for b, block in enumerate(blocks):
+            if block.size != 1:
+                sides[:, b, 0] = self.pieces.state_sphere(block, y, z).ell
+                continue
+            plus, minus, point[b] = self.pieces.interval_sides(block, y, z, self.layout.block_selections(b, lam))
+            sides[:, b, 0] = plus
+            sides[:, b, 1] = 0.0 if point[b] else minus
+        surface = self.surface_at(x)[0] if self.surface is not None else np.zeros((nodes, 0))
+        return Shifts(t=self.grid.t, consistency=self.consistency(x, z), end=self.end_residual(x, z),
+                      surface=surface, blocks=sides,
+                      selections=self._natural_map(y, lam) if self.layout.p else np.zeros((nodes, 0)),
+                      bounds=self.bound_sides(y), point=point)
+
+    def bound_sides(self, y: np.ndarray) -> np.ndarray:
+        """The bounds' sides sense_i·(y_i − limit_i) (N, q) (:class:`Bounds`); q = 0 without."""
+        bounds = self.bounds
+        if bounds is None:
+            return np.zeros((y.shape[0], 0))
+        return bounds.sense * (y[:, bounds.columns] - bounds.limit)
 
     def _distances(self, y: np.ndarray, z: np.ndarray, lam: np.ndarray) -> list[np.ndarray]:
         """h_b (N,) of every block from the pieces' values (no gradients): an interval's in
@@ -149,7 +217,21 @@ class Values:
             selection_residual=float(np.max(np.abs(self.selection_residual(xi, scale=1.0)[0]))) if self.layout.p else None,
         )
 
-    def selection_residual(self, xi: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def selection_kinks(self, xi: np.ndarray, reach: np.ndarray) -> np.ndarray:
+        """(N, p): the scalar selections whose natural map is within `reach` (N, p) of its kink,
+        |λ + c·s| = 1 (its two branches, −c·s and λ ∓ 1, there both in play); not a vector sign's
+        columns nor a held left limit."""
+        y, lam = self.layout.arguments(xi), self.layout.selections(xi)
+        moved = lam + self.selection_scale * self.switch_values(y, gradients=False)[0]
+        kinks = np.abs(1.0 - np.abs(moved)) <= reach
+        for first, width in self.layout.balls:
+            kinks[:, first : first + width] = False
+        rows, cols = self._hold_left_limits(np.zeros_like(lam), lam)
+        kinks[rows, cols] = False
+        return kinks
+
+    def selection_residual(self, xi: np.ndarray, scale: float | None = None,
+                           flip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The natural map r = λ − P(λ + c·s(y)) of every selection, (N, p), and one element of
         its generalized Jacobian in y = (x, u, λ), (N, p, n + m + p). P is the clip to [−1, 1]
         for a scalar Sgn(s) and the projection onto the unit ball B for a vector sign's k
@@ -163,6 +245,8 @@ class Values:
         residual = lam - self.project(moved)
         jacobian = np.zeros((y.shape[0], p, self.layout.width))
         inside = (moved > -1.0) & (moved < 1.0)  # the clip is the identity there
+        if flip is not None:  # the other branch's element where asked (a kink: :meth:`selection_kinks`)
+            inside = inside ^ flip
         jacobian[:, :, :args] = -c * inside[:, :, None] * ds
         columns = np.arange(p)
         jacobian[:, columns, args + columns] = 1.0 - inside
@@ -262,6 +346,13 @@ class Values:
         self.pieces.check("surface", e, (x.shape[0], None))
         self.pieces.check("surface Jacobian", de, (x.shape[0], e.shape[1], self.layout.n))
         return e, de
+
+    def cost_value(self, x: np.ndarray, y: np.ndarray) -> float:
+        """𝒥 = Σ_k w_k c(y_k) (+ the terminal cost M(x(T)))."""
+        value = self.integral(self._cost_integrand(y))
+        if self.cost.terminal is not None:  # type: ignore[union-attr]
+            value += float(self.cost.terminal(x[-1])[0])  # type: ignore[union-attr]
+        return value
 
     def _cost_integrand(self, x: np.ndarray) -> np.ndarray:
         total = np.zeros(x.shape[0])

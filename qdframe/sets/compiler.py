@@ -126,6 +126,35 @@ def _min_group(formulas: list[sp.Expr], symbols, dim: int, label: str) -> MinGro
     return MinGroup(_with_formulas(lambda y, psi: vectorized(y, psi), vectorized), label, values=vectorized.values)
 
 
+def _hessian(expr: sp.Expr, symbols) -> Callable[[np.ndarray], np.ndarray] | None:
+    """∇²c(y) (N, w, w) of a smooth cost integrand, or None where it is affine (no curvature)."""
+    gradient = [sp.diff(expr, s) for s in symbols]
+    if all(sp.diff(g, s) == 0 for g in gradient for s in symbols):
+        return None
+    vectorized = _Vectorized(gradient, symbols)
+    return lambda y: vectorized(y)[1]
+
+
+def _terminal(expr: Any, states: tuple, model: str) -> Callable[[np.ndarray], tuple[float, np.ndarray, np.ndarray]]:
+    """M(x), ∇M and ∇²M at one state x (n,) from a formula of the states."""
+    formula = _expr(expr, f"{model} terminal cost")
+    extra = formula.free_symbols - set(states)
+    if extra:
+        raise InputError(f"{model} terminal_cost()", f"a formula in the states {', '.join(map(str, states))}",
+                         ", ".join(sorted(map(str, extra))))
+    if formula.has(sp.Abs, sp.Max, sp.Min, sp.sign):
+        raise InputError(f"{model} terminal_cost()", "a smooth formula of the states (no Abs, Max, Min)", formula)
+    value = _Vectorized([formula], states)
+    gradient = _Vectorized([sp.diff(formula, s) for s in states], states)
+
+    def terminal(x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        point = np.asarray(x, float)[None, :]
+        grad, hess = gradient(point)
+        return float(value.values(point)[0, 0]), grad[0], hess[0]
+
+    return terminal
+
+
 def _scalar_pieces(exprs: list[sp.Expr], symbols) -> Callable:
     vectorized = _Vectorized(exprs, symbols)
     return _with_formulas(lambda y: vectorized(y), vectorized)
@@ -273,8 +302,11 @@ def compile_sets(
     cost: Any = None,
     weight: float = 1.0,
     model: str = "model",
+    terminal: Any = None,
+    n_states: int | None = None,
 ) -> Compiled:
-    """Compile {state or tuple of states: set} (+ surface formulas, cost integrand) to qdframe's pieces."""
+    """Compile {state or tuple of states: set} (+ surface formulas, cost integrand, terminal
+    cost of the first `n_states` states) to qdframe's pieces."""
     symbols = tuple(states) + tuple(controls)
     index = {s: i for i, s in enumerate(states)}
     switches = _Switches(symbols)
@@ -321,10 +353,15 @@ def compile_sets(
         vectorized = _Vectorized(list(formulas), tuple(states))
         compiled_surface = Surface(lambda x: vectorized(x))
     compiled_cost = None
+    if cost is None and terminal is not None:
+        cost = sp.Integer(0)  # a terminal cost alone: a zero integrand
     if cost is not None:
         maxes, mins = _scalar_groups(_expr(cost, f"{model} cost"), f"{model} cost", allow_min=True)
+        smooth = len(maxes) == 1 and len(maxes[0]) == 1 and not mins  # one formula: its Hessian models it
         compiled_cost = Cost(
-            tuple(_scalar_pieces(g, symbols) for g in maxes), tuple(_scalar_pieces(g, symbols) for g in mins), weight
+            tuple(_scalar_pieces(g, symbols) for g in maxes), tuple(_scalar_pieces(g, symbols) for g in mins), weight,
+            hessian=_hessian(maxes[0][0], symbols) if smooth else None,
+            terminal=None if terminal is None else _terminal(terminal, tuple(states)[: n_states or len(states)], model),
         )
     return Compiled(tuple(blocks), compiled_surface, compiled_cost)
 

@@ -78,6 +78,10 @@ class SetModel(InclusionModel):
         """The cost integrand (smooth terms, c·|e|, c·Max(…), c·Min(…)); None: no cost."""
         return None
 
+    def terminal_cost(self, *states: sp.Symbol) -> Any:
+        """A terminal (Mayer) cost M(x(T)): a smooth formula of the states; None: none."""
+        return None
+
     # -- the InclusionModel interface
     @classmethod
     def symbols(cls) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
@@ -108,10 +112,15 @@ class SetModel(InclusionModel):
                 surface = self.surface_equations(*args)
             with plugin_code(self, "running_cost()"):
                 cost = self.running_cost(*args)
+            terminal = None
+            if cls.terminal_cost is not SetModel.terminal_cost:
+                with plugin_code(self, "terminal_cost()"):
+                    terminal = self.terminal_cost(*states[: len(cls.state_names)])
             if cls.parameter_names:
                 sets = {**sets, **{symbol: 0 for symbol in states[len(cls.state_names):]}}
             cached = compile_sets(sets, states, controls, surface=surface, cost=cost,
-                                  weight=float(cls.penalty), model=cls.name or cls.__name__)
+                                  weight=float(cls.penalty), model=cls.name or cls.__name__, terminal=terminal,
+                                  n_states=len(cls.state_names))
             cls._compiled_sets = cached  # type: ignore[attr-defined]
         return cached
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..descent import multipliers
 from ..descent.loop import DescentOptions, ProgressCallback, descend
 from ..directions.base import DirectionSolver
 from ..functional import Functional
@@ -139,6 +140,7 @@ def run_grids(plan: Staged, progress: ProgressCallback | None) -> Run:
     earlier = []  # what may start the next stage: the last stage's iterate, and its start if that came from a stage
     per_grid = [0] * len(grids)  # iterations spent on each grid (a band start counts on its grid)
     share = max(1, options.max_iter // (2 * len(grids)))  # a coarse grid's cap: the requested grid keeps ≥ half
+    previous = None  # the last grid's functional
     for functional in plan.stages:
         count = functional.grid.nodes
         index = grids.index(count)
@@ -151,6 +153,8 @@ def run_grids(plan: Staged, progress: ProgressCallback | None) -> Run:
             budget = min(budget - 1, BAND_START_ITERATIONS)
         if budget <= 0 and not last:  # no iteration here: no result from this grid
             continue
+        if previous is not None:  # a cost's λ and shifts from the stage before (starts compared at them)
+            functional.take_multipliers(previous)
         label, start, source = lowest_start(plan.starts, functional, earlier)
         from_stage = source is not None
         # a coarser grid's solution: its switches are a few nodes off here, which full steps pass
@@ -169,6 +173,7 @@ def run_grids(plan: Staged, progress: ProgressCallback | None) -> Run:
         stage = dataclasses.replace(stage, max_iter=budget)
         shown = None if progress is None else (lambda record: progress(shift(record)))
         result = descend(functional, plan.solver, plan.search, stage, shown, start, near_solution=near)
+        previous = functional
         shrunk_to.append((result.descent.eps, result.descent.delta))
         history += [shift(record) for record in result.history]
         per_grid[index] += result.iterations
@@ -185,9 +190,11 @@ def run_grids(plan: Staged, progress: ProgressCallback | None) -> Run:
 
 def stalled(plan: Staged, run: Run) -> bool:
     """Whether a Newton-type descent stopped at a local minimum of I (`stationary` with I > tol;
-    a cost's rounds restart on their own, :mod:`qdframe.solve.optimum`)."""
-    return (plan.solver.full_steps and run.functional.cost is None and run.result.status == Status.STATIONARY
-            and run.result.I > plan.options.tol)
+    with a cost, of its augmented Lagrangian, :mod:`qdframe.descent.multipliers`; a cost whose
+    penalty is raised restarts on its own, :mod:`qdframe.solve.optimum`)."""
+    return (plan.solver.full_steps and run.result.status == Status.STATIONARY
+            and run.result.I > plan.options.tol
+            and (run.functional.cost is None or multipliers.applies(run.functional, plan.solver)))
 
 
 def again(plan: Staged, run: Run, again: Staged, label: str, whence: str,

@@ -6,8 +6,9 @@ it returns (cvxpy's solving chain is the model). :data:`LADDER` runs before the 
    minimum of I: the grids again as if the model had no motion;
 2. :class:`FromTheLine` — the model's own start did: the grids again from the straight line
    between the given ends;
-3. :class:`RaisedPenalty` — a cost whose least value is not 0: rounds of ∫cost + λ·I with λ
-   raised (:mod:`qdframe.solve.optimum`).
+3. :class:`RaisedPenalty` — a cost whose least value is not 0, solved by the paper's direction:
+   rounds of ∫cost + λ·I with λ raised (:mod:`qdframe.solve.optimum`; a Newton-type direction
+   finds the optimum within each descent, :mod:`qdframe.descent.multipliers`).
 
 :class:`FreeInputs` runs after the verdict: where the inputs were held and a Newton-type
 descent ended `stationary`, the whole solve again with each point's own choice."""
@@ -17,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from ..descent import multipliers
 from ..descent.loop import ProgressCallback
 from ..functional import Functional
 from ..model import InclusionModel
@@ -82,7 +84,9 @@ class RaisedPenalty:
     the last round's plan and run; its history is every round's, counted on."""
 
     def applies(self, attempt: Attempt) -> bool:
-        return attempt.run.functional.cost is not None
+        # where the method of multipliers applies, each descent finds the optimum itself
+        functional = attempt.run.functional
+        return functional.cost is not None and not multipliers.applies(functional, attempt.staged.solver)
 
     def apply(self, attempt: Attempt) -> Attempt:
         last = {"plan": attempt.staged, "run": attempt.run}

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..certificates.estimates import observed_difference
+from ..functional.shifts import Shifts
 from ..model import InclusionModel
 from .start import straight_guess
 from ..status import Status
@@ -71,12 +72,14 @@ class Round:
         self.iterations = self.result.history[-1].iteration if self.result.history else 0
 
 
-def penalized(model: InclusionModel, weight: float, previous: SolveResult | None) -> InclusionModel:
-    """A copy of `model` whose cost has the penalty `weight` and whose start is the trajectory
-    of `previous` (x, z and the controls, interpolated in t), if given."""
+def penalized(model: InclusionModel, weight: float, previous: SolveResult | None,
+              shifts: Shifts | None = None) -> InclusionModel:
+    """A copy of `model` whose cost has the penalty `weight` (and the augmented Lagrangian's
+    `shifts`) and whose start is the trajectory of `previous` (x, z and the controls,
+    interpolated in t), if given."""
     out = copy.copy(model)
     cost = model.cost()
-    out.cost = lambda: dataclasses.replace(cost, weight=float(weight))  # type: ignore[method-assign]
+    out.cost = lambda: dataclasses.replace(cost, weight=float(weight), shifts=shifts)  # type: ignore[method-assign]
     if previous is None and len(model.end_indices):  # a fresh start: the straight line between the given ends
         out.initial_guess = lambda times: straight_guess(model, times)  # type: ignore[method-assign]
     if previous is not None:
@@ -145,7 +148,19 @@ def penalty_error(rounds: list[Round]) -> float:
     where the penalty is exact)."""
     if len(rounds) < 2:
         return 0.0
+    changes = [_change(later, earlier) for earlier, later in zip(rounds[-3:-1], rounds[-2:])]
     last, before = rounds[-1], rounds[-2]
-    difference = observed_difference(last.functional.model, last.functional.grid, np.asarray(last.result.x, float),
-                                     before.functional.grid, np.asarray(before.result.x, float))
-    return float(np.max(np.abs(difference))) * before.weight / (last.weight - before.weight)
+    if last.functional.shifts is None:  # the penalty raised: x_λ − x* is O(1/λ)
+        return changes[-1] * before.weight / (last.weight - before.weight)
+    # the multipliers' rounds converge linearly: what is left is the last change times ρ/(1 − ρ),
+    # ρ the last two changes' ratio (at most 1/2; 1/2 where there is one change)
+    rate = min(changes[-1] / changes[0], 0.5) if len(changes) == 2 and changes[0] > 0 else 0.5
+    return changes[-1] * rate / (1.0 - rate)
+
+
+def _change(later: Round, earlier: Round) -> float:
+    """max |x_later − x_earlier| in what the user is given (:func:`observed_difference`)."""
+    difference = observed_difference(later.functional.model, later.functional.grid, np.asarray(later.result.x, float),
+                                     earlier.functional.grid, np.asarray(earlier.result.x, float))
+    return float(np.max(np.abs(difference)))
+

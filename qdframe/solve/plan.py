@@ -112,6 +112,12 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
                          "mesh= without accuracy=)", estimate)
     requested = (ACCURACY_SCHEME if refining else model.default_scheme) if scheme is None else scheme
     solver = make_direction(direction)
+    cost = model.cost()
+    needs = [what for what, present in (("state_bounds or control_bounds", getattr(model, "bounds_table", None)),
+                                        ("a terminal cost", cost is not None and cost.terminal is not None)) if present]
+    if needs and not solver.full_steps:
+        raise InputError("direction", f"a Newton-type direction (gauss-newton) for a model with {needs[0]}: the "
+                         "paper's min-norm direction does not model them", direction)
     if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
         max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
     if eps_floor is None:  # a fixed grid keeps the paper's ε and δ

@@ -183,8 +183,10 @@ def _turning(x: np.ndarray) -> float:
 def simulate(functional: Functional) -> FilippovTrajectory | None:
     """The model's Filippov motion over [0, T] from x(0) (free values by shooting), under its
     first controls where it has controls; None where a set is not a point (the velocity is
-    a choice)."""
+    a choice) or the controls have a cost to minimize."""
     model = functional.model
+    if functional.m and functional.cost is not None:  # the controls are the optimum's to choose: the motion
+        return None                                    # under their first guess (at rest, often) starts nothing
     exact = functional if functional.signs == "exact" else Functional(model, functional.grid, signs="exact")
     controls = None
     if exact.m:  # the motion under the model's own first controls

@@ -1,0 +1,152 @@
+"""A cost's optimum over the solutions by the method of multipliers, inside a descent.
+
+With a cost 𝒥 whose least value over the solutions is not 0 (a least effort, a shortest
+time, a terminal cost), the minimizer of 𝒥 + λ·I is not a solution for any finite λ (it
+trades cost against I). The method of multipliers (Hestenes 1969, Powell 1969; Nocedal &
+Wright, Numerical Optimization, 2nd ed., §17.3–17.4) keeps λ moderate and moves each
+residual r of I by a shift s = y/λ, y its multiplier (:mod:`qdframe.functional.shifts`):
+after each descent of the shifted objective 𝒥 + (λ/2)·Σ w·(r + s)², the shifts move to
+s + r (an equation) or max(0, s + ℓ) (a side of a set, a bound), and the descent goes on
+from its last iterate. As s → y*/λ the minimizer tends to the constrained optimum: the
+descent ends `solved` where every pointwise check passes (I unshifted ≤ tol, the checks of
+:mod:`.checks`) and the multipliers' gap |yᵀr| (the first-order distance of 𝒥 from the
+optimum of the discrete problem) is at most GAP_TOL·max(1, |𝒥|).
+
+λ starts at the model's (a cost whose least value is 0, as the paper's Example 7.1, ends in
+the first round with no shift), is at least MULTIPLIER_START after it, and is raised
+×RAISE_BY where a round cuts the largest violation by less than FEASIBLE_RATE, never past
+PENALTY_CAP. A first round where the cost won outright (its gap more than WARM_SHARE of
+the cost: a shortest time at λ = 1 shrinks T towards 0 with the block at rest) gives no
+multipliers: the next starts afresh from the descent's own start.
+
+Applies to Newton-type directions (gauss-newton), whose linearized system carries the shifts;
+the paper's min-norm direction raises the penalty between solves instead
+(:mod:`qdframe.solve.optimum`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+
+from ..directions.base import DirectionSolver
+from ..functional import Functional
+from ..functional.shifts import Shifts
+from ..result import PenaltyRecord, SolveResult
+from ..status import Status
+
+MULTIPLIER_START = 1e2
+PENALTY_CAP = 1e6
+RAISE_BY = 10.0
+FEASIBLE_RATE = 0.25
+MAX_ROUNDS = 40
+GAP_TOL = 1e-7  # a tenth of the default accuracy asked of the cost, |J − J*| ≤ 1e-6·max(1, |J|)
+WARM_SHARE = 0.1
+
+
+def applies(functional: Functional, solver: DirectionSolver) -> bool:
+    """A cost, a direction whose step model reads the shifts (a Newton-type one), and no unknown
+    constants (a free T or parameters): Gauss–Newton's model leaves out the constraints' own
+    curvature Σ y·∇²r, which the bilinear T·F of a free end time makes as large as the decrease
+    near the optimum (a shortest time stalls with its residuals at 1e-8); there the penalty is
+    raised instead (:mod:`qdframe.solve.optimum`), which drives y/λ, and the term, to 0."""
+    return functional.cost is not None and solver.full_steps and not functional.model.constant_states
+
+
+def violation(residuals: Shifts) -> float:
+    """The largest violation of a constraint behind I: |r| of an equation, max(0, ℓ) of a side."""
+    sides = np.where(residuals.point[None, :, None], np.abs(residuals.blocks), np.maximum(residuals.blocks, 0.0))
+    parts = [np.abs(residuals.consistency), np.abs(residuals.end), np.abs(residuals.surface), sides,
+             np.abs(residuals.selections), np.maximum(residuals.bounds, 0.0)]
+    return max((float(np.max(part)) for part in parts if part.size), default=0.0)
+
+
+def gap(functional: Functional, residuals: Shifts) -> float:
+    """|yᵀr| at the functional's λ and shifts: the multipliers y = λ·w·(r + s) (resp.
+    λ·w·max(0, ℓ + s)) against the residuals; without shifts 2λ·I, the penalty's gap."""
+    s = functional.shifts if functional.shifts is not None else zeros(residuals)
+    w = functional.grid.weights
+    sides = residuals.blocks + s.blocks
+    shifted = np.where(s.point[None, :, None], sides, np.maximum(sides, 0.0))
+    total = float(np.sum(w[:, None] * (residuals.consistency + s.consistency) * residuals.consistency))
+    total += float(np.sum((residuals.end + s.end) * residuals.end))
+    total += float(np.sum(w[:, None] * (residuals.surface + s.surface) * residuals.surface))
+    total += float(np.sum(w[:, None, None] * shifted * residuals.blocks))
+    total += float(np.sum(w[:, None] * (residuals.selections + s.selections) * residuals.selections))
+    total += float(np.sum(w[:, None] * np.maximum(residuals.bounds + s.bounds, 0.0) * residuals.bounds))
+    return abs(functional.penalty * total)
+
+
+def zeros(residuals: Shifts) -> Shifts:
+    """Shifts of 0 in the shape of `residuals`."""
+    return dataclasses.replace(residuals, **{name: np.zeros_like(getattr(residuals, name)) for name in
+                                             ("consistency", "end", "surface", "blocks", "selections", "bounds")})
+
+
+def iterate(functional: Functional, result: SolveResult) -> np.ndarray:
+    """ξ of a descent's result on its functional."""
+    u = None if result.u is None else np.asarray(result.u, float)
+    selections = None if result.selections is None else np.asarray(result.selections, float)
+    return functional.pack(np.asarray(result.x, float), np.asarray(result.z, float), u, selections)
+
+
+def settled(functional: Functional, result: SolveResult) -> bool:
+    """Solved, with the multipliers' gap within GAP_TOL·max(1, |𝒥|)."""
+    if result.status != Status.SOLVED:
+        return False
+    return gap(functional, functional.constraint_residuals(iterate(functional, result))) <= \
+        GAP_TOL * max(1.0, abs(result.cost or 0.0))
+
+
+def rounds(functional: Functional, first: SolveResult, again: Callable[[np.ndarray, int], SolveResult],
+           start: np.ndarray, budget: int, full_step: Callable[[np.ndarray], np.ndarray] | None = None) -> SolveResult:
+    """The descent's result after the multipliers' rounds (module docstring). `first`: the
+    descent at the functional's λ and shifts; `again(ξ, max_iter)` descends once more from ξ;
+    `start` the descent's own start; `budget` its iterations in all; `full_step(ξ)` ξ plus the
+    direction's whole step (where a round takes no step). The functional keeps
+    the last λ and shifts (a finer grid's functional takes them: :meth:`Functional.take_multipliers`)."""
+    result, history = first, list(first.history)
+    last_violation, count = np.inf, 0
+    spent = [(functional.penalty, first.iterations)]  # (λ, iterations) of each round
+    while True:
+        xi = iterate(functional, result)
+        residuals = functional.constraint_residuals(xi)
+        now, distance = violation(residuals), gap(functional, residuals)
+        cost = abs(result.cost or 0.0)
+        if result.status == Status.SOLVED and distance <= GAP_TOL * max(1.0, cost):
+            break
+        used = history[-1].iteration
+        if count and result.status not in (Status.SOLVED, Status.STATIONARY):
+            break  # the descent's own limit (its budget, a failed step), not the multipliers, ended it
+        stuck = count and result.iterations == 0
+        if count >= MAX_ROUNDS or used >= budget or (stuck and functional.penalty >= PENALTY_CAP):
+            result.remarks.append(f"the multipliers' rounds stopped after {count} at λ = {functional.penalty:.0e}: "
+                                  f"violation {now:.1e}, gap |yᵀr| {distance:.1e}")
+            break
+        warm = count > 0 or distance <= WARM_SHARE * max(cost, 1e-300)
+        weight = functional.penalty
+        if not warm or (count and now > FEASIBLE_RATE * last_violation):
+            # no step at all: the shifts' pull on a kink of a residual at its root (a selection at
+            # an end of Sgn where its switch is 0) is a wall to the descent; a higher λ shrinks it
+            weight = min(weight * RAISE_BY ** (2 if stuck else 1), PENALTY_CAP)
+        base = functional.shifts if functional.shifts is not None else zeros(residuals)
+        moved = base.moved(residuals) if warm else zeros(residuals)
+        functional.set_multipliers(moved.scaled(functional.penalty / weight), weight)
+        result = again(xi if warm else start, budget - used)
+        if result.iterations == 0 and result.status != Status.SOLVED and full_step is not None:
+            # no step taken: the decrease the moved shifts ask for is below the objective's rounding
+            # (the cost's size sets it); the Newton step they give is taken whole where it lowers the
+            # violation, and the descent goes on from there
+            trial = full_step(xi)
+            if violation(functional.constraint_residuals(trial)) < now:
+                result = again(trial, budget - used)
+        spent.append((weight, result.iterations))
+        elapsed = history[-1].time_s
+        history.extend(dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
+                       for record in result.history[1:])
+        last_violation, count = now, count + 1
+    result.history = history
+    result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent))
+    return result

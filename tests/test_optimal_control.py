@@ -1,0 +1,124 @@
+"""Optimal control (issue 53): costs whose least value is not 0, control bounds and a terminal
+cost, solved by the method of multipliers (qdframe.descent.multipliers) and held to their exact
+optima (qdframe.models.optimal_references, each checked there by an integration of its control)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import qdframe
+from qdframe.descent import multipliers
+from qdframe.errors import InputError
+from qdframe.functional.shifts import Shifts
+from qdframe.registry import load_model
+from qdframe.sets import SetModel, Sgn
+
+MODELS = ("least-effort-block", "least-effort-bounded", "lq-terminal")
+
+
+@pytest.fixture(scope="module", params=MODELS)
+def solved(request):
+    model = load_model(request.param)
+    return model, qdframe.solve(model)
+
+
+def test_the_default_call_is_solved_at_the_exact_optimum(solved):
+    """|J − J*| ≤ 1e-6·max(1, J*) and the trajectory within 1e-6·max(1, max|x*|) of the exact
+    optimum, the estimate bounding the true error."""
+    model, result = solved
+    assert result.solved, result.message
+    assert abs(result.cost - model.exact_cost) <= 1e-6 * max(1.0, model.exact_cost)
+    exact = model.exact_solution(result.t)
+    error = float(np.max(np.abs(result.x - exact)))
+    assert error <= 1e-6 * max(1.0, float(np.max(np.abs(exact))))
+    assert error <= result.error_estimate
+
+
+def test_no_penalty_above_1e6(solved):
+    _, result = solved
+    assert result.options["penalty"] <= multipliers.PENALTY_CAP
+    assert all(weight <= multipliers.PENALTY_CAP for weight, _ in result.options["penalty_rounds"])
+
+
+def test_the_control_bound_holds_and_binds_where_pontryagin_says():
+    """|u| ≤ 1.5 at every point; u = 1.5 on [0, 1/2] (the reference's switch), below it after."""
+    model = load_model("least-effort-bounded")
+    result = qdframe.solve(model)
+    u = np.asarray(result.u)[1:, 0]  # (the first point's u is not in Radau IIA's rule: the cost keeps it at 0)
+    assert np.all(np.abs(u) <= 1.5 + 1e-8)
+    switch = model.reference().switch_times[0]
+    assert switch == pytest.approx(0.5)
+    before, after = result.t[1:] < switch - 0.02, result.t[1:] > switch + 0.02
+    assert np.all(u[before] >= 1.5 - 1e-6) and np.all(u[after] < 1.5 - 1e-3)
+
+
+def test_the_unbounded_least_effort_exceeds_the_bound():
+    """The bound changes the answer: without it u(0) = 2 and J* = 2 < 37/18."""
+    result = qdframe.solve(load_model("least-effort-block"))
+    assert float(np.asarray(result.u)[1, 0]) == pytest.approx(2.0, abs=1e-2)
+    assert result.cost < 37 / 18 - 1e-3
+
+
+def test_the_terminal_cost_is_not_dropped():
+    """The issue's case: ∫u² + 50·((p(1) − 2)² + v(1)²) from rest, J* = 850/23 = 36.96 (was J = 0)."""
+    result = qdframe.solve("lq-terminal")
+    assert result.cost == pytest.approx(850 / 23, rel=1e-6)
+    assert result.x[-1, 0] == pytest.approx(1.6304347826, abs=1e-5)
+
+
+def _block(**attributes) -> type[SetModel]:
+    namespace = dict(name="block", state_names="p v", control_names="u", default_x0=(0.0, 0.0),
+                     default_xT={"p": 1.0, "v": 0.0}, default_T=2.0,
+                     sets=lambda self, p, v, u: {p: v, v: u - 0.5 * Sgn(v)},
+                     running_cost=lambda self, p, v, u: u**2)
+    return type("Block", (SetModel,), {**namespace, **attributes})
+
+
+@pytest.mark.parametrize(("attributes", "field"), [
+    ({"control_bounds": {"w": (-1, 1)}}, "control_bounds['w']"),
+    ({"control_bounds": {"u": (1, -1)}}, "control_bounds['u']"),
+    ({"control_bounds": {"u": 2.0}}, "control_bounds['u']"),
+    ({"state_bounds": {"u": (0, 1)}}, "state_bounds['u']"),
+    ({"state_bounds": [("p", (0, 1))]}, "state_bounds"),
+])
+def test_bad_bounds_are_refused_by_name(attributes, field):
+    with pytest.raises(InputError, match=f"Block.{field}".replace("[", r"\[").replace("]", r"\]")):
+        _block(**attributes)()
+
+
+def test_a_terminal_cost_of_a_control_is_refused():
+    with pytest.raises(InputError, match="terminal_cost"):
+        qdframe.solve(_block(terminal_cost=lambda self, p, v: v * p + self.symbols()[1][0])())
+
+
+def test_the_paper_direction_refuses_what_it_does_not_model():
+    with pytest.raises(InputError, match="direction"):
+        qdframe.solve(load_model("least-effort-bounded"), direction="native")
+
+
+def test_a_state_bound_holds():
+    """A path constraint: v ≤ 0.6 on the least-effort move (unbounded, v peaks at 0.75)."""
+    result = qdframe.solve(_block(state_bounds={"v": (-np.inf, 0.6)})(), nodes=101, estimate=False)
+    assert result.status.name in ("SOLVED", "UNCERTIFIED"), result.message
+    assert float(np.max(result.x[:, 1])) <= 0.6 + 1e-8
+    assert result.checks["bounds"]["value"] <= result.checks["bounds"]["tol"]
+
+
+def test_shifts_move_as_the_method_of_multipliers_says():
+    """s + r for an equation, max(0, s + ℓ) for a side, and linear interpolation in t."""
+    t = np.array([0.0, 1.0])
+    zero = Shifts(t=t, consistency=np.zeros((2, 1)), end=np.zeros(1), surface=np.zeros((2, 0)),
+                  blocks=np.zeros((2, 2, 2)), selections=np.zeros((2, 1)), bounds=np.zeros((2, 1)),
+                  point=np.array([True, False]))
+    residuals = dataclasses.replace(zero, consistency=np.array([[1.0], [2.0]]), blocks=np.full((2, 2, 2), -1.0),
+                                    bounds=np.array([[0.5], [-0.5]]))
+    moved = zero.moved(residuals)
+    assert moved.consistency.ravel().tolist() == [1.0, 2.0]
+    assert moved.blocks[:, 0].tolist() == [[-1.0, -1.0], [-1.0, -1.0]]  # the point set's equation: s + r
+    assert moved.blocks[:, 1].tolist() == [[0.0, 0.0], [0.0, 0.0]]  # the interval's sides: max(0, s + ℓ)
+    assert moved.bounds.ravel().tolist() == [0.5, 0.0]
+    assert moved.at(np.array([0.5])).consistency.ravel().tolist() == [1.5]
+    assert moved.scaled(0.1).consistency.ravel().tolist() == pytest.approx([0.1, 0.2])
