@@ -82,6 +82,7 @@ class PenaltyRecord:
     penalty: float
     optimality_gap: float
     penalty_rounds: tuple[tuple[float, int], ...]
+    newton_step: float = 0.0  # max |x-part of the Newton step| where a descent stopped short of its optimum
 
 
 @dataclass(frozen=True)
@@ -319,7 +320,9 @@ class SolveResult:
             ("I = φ+χ+ω+υ+σ", f"{self.I:.3e}  (" + ", ".join(f"{k} {v:.1e}" for k, v in self.terms.items()) + ")"),
         ]
         if self.cost is not None:
-            rows.insert(7, ("cost", f"{self.cost:.3e}"))
+            optimum = "" if self.penalty is None else (f"  (optimality gap {self.penalty.optimality_gap:.1e}, "
+                                                        f"λ = {self.penalty.penalty:.0e})")
+            rows.insert(7, ("cost", f"{self.cost:.10g}" + optimum))
         if self.parameters:
             rows.insert(4, ("parameters", _named(self.parameters)))
         labels = {"boundary": "boundary error", "inclusion": "inclusion residual", "selection": "selection residual",
@@ -330,6 +333,10 @@ class SolveResult:
             if check is not None:
                 text += f"  (tol {check['tol']:.1e}{', binds' if name == self.binding_check else ''})"
             rows.append((labels[name], text))
+        if "bounds" in self.checks:  # state_bounds, control_bounds: the largest violation
+            check = self.checks["bounds"]
+            rows.append(("bound violation", f"{check['value']:.3e}  (tol {check['tol']:.1e}"
+                         + (", binds)" if self.binding_check == "bounds" else ")")))
         bound = None if self.accuracy is None else self.accuracy * max(1.0, float(np.max(np.abs(self.x))))
         how = {"bisection": "from the bisected mesh", "replay": "against the true motion its choices drive"}
         rows.append(("error estimate", "—" if self.error_estimate is None else

@@ -191,6 +191,8 @@ def defects(functional: Functional, result: SolveResult) -> float:
     """What a trajectory's own residuals can move it from a solution by (module docstring)."""
     scale = max(1.0, float(np.max(np.abs(result.x))))
     floor = result.boundary_error + result.consistency_error + ROUNDING * scale
+    if result.penalty is not None:  # a cost's optimum: how far its last Newton step would still move x
+        floor += result.penalty.newton_step
     velocity = result.inclusion_residual
     if result.selection_residual is not None and functional.p:
         velocity += selection_amplitude(functional, result) * result.selection_residual

@@ -46,12 +46,12 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
     λ jumps from one end of [−1, 1] to the other), keeping the stops, sticks, break-aways
     and the entries into and exits from sliding; `merge=False` keeps times closer than the
     mesh step apart (the refinement pins a mesh point on each)."""
-    if not functional.p:
-        return np.zeros(0)
     grid = functional.grid
     y, lam = functional.arguments(xi), functional.selections(xi)
+    found: list[np.ndarray] = [_bound_times(functional, grid, y, merge)]
+    if not functional.p:
+        return found[0]
     s = functional.switch_values(y, gradients=False)[0]
-    found: list[np.ndarray] = []
     for group in functional.selection_groups:
         if group.width == 1:
             pair = s[:, group.first], lam[:, group.first]
@@ -63,6 +63,31 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
         found.append(merge_close(times, grid.mesh_times) if merge else times)
     times = np.unique(np.concatenate(found)) if found else np.zeros(0)
     return merge_close(times, grid.mesh_times, SAME_TIME * (grid.t[-1] - grid.t[0])) if merge else times
+
+
+def _bound_times(functional: Functional, grid, y: np.ndarray, merge: bool) -> np.ndarray:
+    """Where a bound (``state_bounds``, ``control_bounds``) starts or stops binding, located as a
+    sign term's stop and break-away: its side g = ±(y_j − limit) ≤ 0 is s, "on" where g = 0, and
+    its multiplier over λ (the augmented Lagrangian's shift, :mod:`qdframe.functional.shifts`),
+    scaled to λ' = −1 + y/max y, reaches −1 where the bound lets go. A control clipped by its
+    bound has a kink there that a mesh point restores the order at, as at a switch. Without
+    shifts (no cost) nothing is located."""
+    bounds, shifts = functional.bounds, functional.shifts
+    if bounds is None or shifts is None:
+        return np.zeros(0)
+    sides = functional.values.bound_sides(y)
+    times = []
+    for j in range(sides.shape[1]):
+        multiplier = np.maximum(shifts.bounds[:, j], 0.0)
+        top = float(np.max(multiplier))
+        if top <= 0.0:
+            continue  # never binds
+        located = [time for time, _ in _locate(grid.t, grid.mesh, sides[:, j], multiplier / top - 1.0)]
+        times.append(np.clip(np.asarray(located, dtype=float), grid.t[0], grid.t[-1]) + 0.0)
+    if not times:
+        return np.zeros(0)
+    out = np.unique(np.round(np.concatenate(times), 14))
+    return merge_close(out, grid.mesh_times) if merge else out
 
 
 def polish(times: np.ndarray, events: Sequence[float], mesh: np.ndarray) -> np.ndarray:

@@ -75,22 +75,14 @@ def descend(
     core (`qdframe bench scale`, docs/benchmarks.md).
     """
     with _blas().limit(limits=1, user_api="blas"):
-        if multipliers.applies(functional, solver):  # a cost: its optimum (.multipliers), λ ≥ MULTIPLIER_START
-            functional.set_multipliers(functional.shifts, max(functional.penalty, multipliers.MULTIPLIER_START))
-        result = _descend(functional, solver, search, options, progress, start, near_solution)
-        if multipliers.applies(functional, solver) and options.max_iter > 0:
-            first = _started(functional, start)[0]
+        if multipliers.applies(functional, solver):  # a cost: its optimum by the method of multipliers
 
-            def again(xi: np.ndarray, budget: int) -> SolveResult:
+            def once(xi: np.ndarray | None, budget: int, near: bool) -> SolveResult:
                 return _descend(functional, solver, search, dataclasses.replace(options, max_iter=budget), progress,
-                                xi, True)
+                                xi, near)
 
-            def full_step(xi: np.ndarray) -> np.ndarray:
-                solver.start(functional)
-                return xi + solver.compute(functional, xi, options.delta).step
-
-            result = multipliers.rounds(functional, result, again, first, options.max_iter, full_step)
-        return result
+            return multipliers.optimum(functional, solver, options, once, start, near_solution)
+        return _descend(functional, solver, search, options, progress, start, near_solution)
 
 
 @functools.cache

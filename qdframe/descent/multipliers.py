@@ -31,17 +31,20 @@ from collections.abc import Callable
 
 import numpy as np
 
+from . import checks
 from ..directions.base import DirectionSolver
 from ..functional import Functional
 from ..functional.shifts import Shifts
 from ..result import PenaltyRecord, SolveResult
 from ..status import Status
+from .options import DescentOptions
 
 MULTIPLIER_START = 1e2
 PENALTY_CAP = 1e6
 RAISE_BY = 10.0
 FEASIBLE_RATE = 0.25
 MAX_ROUNDS = 40
+STEP_TOL = 1e-7  # relative to max(1, max|x|): a Newton step this small (1/10 of the default target) ends a descent
 GAP_TOL = 1e-7  # a tenth of the default accuracy asked of the cost, |J − J*| ≤ 1e-6·max(1, |J|)
 WARM_SHARE = 0.1
 
@@ -100,24 +103,99 @@ def settled(functional: Functional, result: SolveResult) -> bool:
         GAP_TOL * max(1.0, abs(result.cost or 0.0))
 
 
-def rounds(functional: Functional, first: SolveResult, again: Callable[[np.ndarray, int], SolveResult],
-           start: np.ndarray, budget: int, full_step: Callable[[np.ndarray], np.ndarray] | None = None) -> SolveResult:
+def optimum(functional: Functional, solver: DirectionSolver, options: DescentOptions,
+            once: Callable[[np.ndarray | None, int, bool], SolveResult], start: np.ndarray | None,
+            near: bool) -> SolveResult:
+    """A descent to the cost's optimum (module docstring): `once(ξ, max_iter, near)` descends once
+    on the functional (its λ and shifts as they stand) from ξ (None: the model's start). From a
+    start that is not a coarser grid's solution (`near`), a first descent at PENALTY_CAP finds a
+    point that nearly meets the constraints, the cost barely felt (from rest, a block with
+    friction the cost keeps still at λ = 100: its selections stick and the semismooth step cannot
+    leave); the rounds then go from there at λ = MULTIPLIER_START."""
+    budget = options.max_iter
+    weight = max(functional.penalty, MULTIPLIER_START)
+    feasible = None
+    if not near and functional.shifts is None and budget > 0:
+        functional.set_multipliers(None, PENALTY_CAP)
+        feasible = once(start, budget, False)
+        start, budget = iterate(functional, feasible), budget - feasible.iterations
+        if settled(functional, feasible):  # (a cost whose least value is 0: the constraints' solution is its optimum)
+            feasible.penalty = PenaltyRecord(PENALTY_CAP, gap(functional, functional.constraint_residuals(start)),
+                                             ((PENALTY_CAP, feasible.iterations),))
+            return feasible
+        functional.set_multipliers(None, weight)
+    else:
+        functional.set_multipliers(functional.shifts, max(functional.penalty, weight))
+    first = once(start, budget, near or feasible is not None)
+    if feasible is not None:
+        first = _after(feasible, first)
+    if budget <= 0:
+        return first
+    origin = start if start is not None else functional.initial_point()
+    spent = [] if feasible is None else [(PENALTY_CAP, feasible.iterations)]
+    return rounds(functional, solver, options, first, once, origin, options.max_iter, spent)
+
+
+def _after(earlier: SolveResult, later: SolveResult) -> SolveResult:
+    """`later` with `earlier`'s history before its own, its iterations and time counted on."""
+    later.history = _joined(earlier.history, later.history)
+    later.iterations = later.history[-1].iteration
+    later.wall_time_s += earlier.wall_time_s
+    return later
+
+
+def _joined(history: list, more: list) -> list:
+    """`history` then `more` (its first record, the start, left out), counted on."""
+    used, elapsed = history[-1].iteration, history[-1].time_s
+    return history + [dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
+                      for record in more[1:]]
+
+
+def _optimal(functional: Functional, solver: DirectionSolver, options: DescentOptions, xi: np.ndarray) -> float | None:
+    """For a solution of the discrete problem (I ≤ tol, every check) whose Newton step moves x by
+    at most STEP_TOL·max(1, max|x|), that move (the model's optimum is that near, though a line
+    search stopped short of proving it: the objective's rounding at a kink of the model; the
+    error estimate adds it); None otherwise."""
+    if functional.terms(xi).I > options.tol or checks.failures(checks.checks(functional, xi, options.residual_tol)):
+        return None
+    solver.start(functional)
+    step = solver.compute(functional, xi, options.delta).step
+    scale = max(1.0, float(np.max(np.abs(functional.split(xi)[0]))))
+    move = float(np.max(np.abs(step[:, : functional.n])))
+    return move if move <= STEP_TOL * scale else None
+
+
+def _full_step(functional: Functional, solver: DirectionSolver, options: DescentOptions, xi: np.ndarray) -> np.ndarray:
+    solver.start(functional)
+    return xi + solver.compute(functional, xi, options.delta).step
+
+
+def rounds(functional: Functional, solver: DirectionSolver, options: DescentOptions, first: SolveResult,
+           once: Callable[[np.ndarray | None, int, bool], SolveResult], start: np.ndarray, budget: int,
+           spent: list[tuple[float, int]] | None = None) -> SolveResult:
     """The descent's result after the multipliers' rounds (module docstring). `first`: the
-    descent at the functional's λ and shifts; `again(ξ, max_iter)` descends once more from ξ;
-    `start` the descent's own start; `budget` its iterations in all; `full_step(ξ)` ξ plus the
-    direction's whole step (where a round takes no step). The functional keeps
-    the last λ and shifts (a finer grid's functional takes them: :meth:`Functional.take_multipliers`)."""
-    result, history = first, list(first.history)
-    last_violation, count = np.inf, 0
-    spent = [(functional.penalty, first.iterations)]  # (λ, iterations) of each round
+    descent at the functional's λ and shifts; `once(ξ, max_iter, near)` descends once more;
+    `start` the descent's own start; `budget` its iterations in all. Where a round takes no
+    step (the decrease the moved shifts ask for is below the objective's rounding, which the
+    cost's size sets), the Newton step is taken whole where it lowers the violation; where a
+    descent stops short of proving its optimum but the Newton step is below STEP_TOL, it is
+    solved (:func:`_optimal`). The functional keeps the last λ and shifts (a finer grid's
+    functional takes them: :meth:`Functional.take_multipliers`)."""
+    result = first
+    last_violation, count, move = np.inf, 0, None
+    spent = [*(spent or []), (functional.penalty, first.iterations - sum(k for _, k in spent or []))]  # (λ, iterations)
     while True:
         xi = iterate(functional, result)
         residuals = functional.constraint_residuals(xi)
         now, distance = violation(residuals), gap(functional, residuals)
         cost = abs(result.cost or 0.0)
-        if result.status == Status.SOLVED and distance <= GAP_TOL * max(1.0, cost):
+        close = distance <= GAP_TOL * max(1.0, cost)
+        move = _optimal(functional, solver, options, xi) if result.status != Status.SOLVED and close else None
+        if move is not None:
+            result.status, result.reason, result.remarks = Status.SOLVED, "", []
+        if result.status == Status.SOLVED and close:
             break
-        used = history[-1].iteration
+        used = result.iterations
         if count and result.status not in (Status.SOLVED, Status.STATIONARY):
             break  # the descent's own limit (its budget, a failed step), not the multipliers, ended it
         stuck = count and result.iterations == 0
@@ -134,19 +212,14 @@ def rounds(functional: Functional, first: SolveResult, again: Callable[[np.ndarr
         base = functional.shifts if functional.shifts is not None else zeros(residuals)
         moved = base.moved(residuals) if warm else zeros(residuals)
         functional.set_multipliers(moved.scaled(functional.penalty / weight), weight)
-        result = again(xi if warm else start, budget - used)
-        if result.iterations == 0 and result.status != Status.SOLVED and full_step is not None:
-            # no step taken: the decrease the moved shifts ask for is below the objective's rounding
-            # (the cost's size sets it); the Newton step they give is taken whole where it lowers the
-            # violation, and the descent goes on from there
-            trial = full_step(xi)
+        earlier = result
+        result = once(xi if warm else start, budget - used, True)
+        if result.iterations == 0 and result.status != Status.SOLVED:
+            trial = _full_step(functional, solver, options, xi)
             if violation(functional.constraint_residuals(trial)) < now:
-                result = again(trial, budget - used)
+                result = _after(result, once(trial, budget - used, True))
         spent.append((weight, result.iterations))
-        elapsed = history[-1].time_s
-        history.extend(dataclasses.replace(record, iteration=record.iteration + used, time_s=record.time_s + elapsed)
-                       for record in result.history[1:])
+        result = _after(earlier, result)
         last_violation, count = now, count + 1
-    result.history = history
-    result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent))
+    result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent), move or 0.0)
     return result

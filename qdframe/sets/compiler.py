@@ -379,7 +379,8 @@ def _compile_block(f, coords: tuple[int, ...], name: str, symbols: tuple, switch
         raise SetStructureError(f"{model} {name}", "Sgn terms only in one-coordinate blocks")
     max_groups = tuple(MaxGroup(_max_pieces(vs, symbols), label) for label, vs in support.polytopes)
     min_groups = tuple(_min_group(gs, symbols, f.dim, label) for label, gs in support.mins)
-    signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs)
+    signs = tuple(_sign_term(label, a, s, band, switches, f"{model} {name}") for label, a, s, band in support.signs
+                  if sp.sympify(a) != 0)  # 0·Sgn(s) (a coefficient set to 0): no term, no selection to leave free
     return SetBlock(coords, max_groups, min_groups, name, signs)
 
 

@@ -30,6 +30,10 @@ from ..status import Status
 from ..certificates.switches import switch_times
 
 SWITCH_SETTLED = 1e-12  # relative to T: a switch time that moves less between rounds has settled
+# a switch closer to an end than this share of the end's mesh interval is the end itself (below the
+# locator's own accuracy there): a block's stop at T, located 5e-8 before it, pinned an interval
+# of 5e-8 whose degenerate complementarity stalled the solve on it
+END_MARGIN = 1e-3
 SWITCH_ROUNDS = 6  # at most this many re-solves to settle the switch times on one mesh
 SECANT_MIN = 0.2  # a pin's secant step is taken where the located time's slope m has |1 − m| above this …
 SECANT_REACH = 10.0  # … and the step is at most this many times the plain re-pinning's
@@ -145,9 +149,11 @@ def pin(mesh: np.ndarray, times: np.ndarray) -> np.ndarray:
     pinned is moved there (it stays between its neighbours), else a point is inserted."""
     tau = np.array(mesh, dtype=float)
     T = tau[-1]
+    near_start = max(SWITCH_SETTLED * T, END_MARGIN * (tau[1] - tau[0])) if tau.size > 1 else 0.0
+    near_end = max(SWITCH_SETTLED * T, END_MARGIN * (tau[-1] - tau[-2])) if tau.size > 1 else 0.0
     used: set[float] = set()
     for time in np.sort(times):
-        if not SWITCH_SETTLED * T < time < (1.0 - SWITCH_SETTLED) * T:  # at an end: the end itself
+        if not tau[0] + near_start < time < T - near_end:  # at an end: the end itself
             continue
         j = int(np.argmin(np.abs(tau - time)))
         if tau[j] in used and abs(tau[j] - time) <= SWITCH_SETTLED * T:
