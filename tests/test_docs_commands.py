@@ -227,7 +227,7 @@ STATUSES: dict[str, Status] = {
     "qdframe solve paper-7.2 --xT=3,0": ST,
     # friction.md: "`uncertified`: the discrete problem is solved"
     "qdframe solve block-stop-stick --nodes 101 --plot docs/figures/block-stop-stick.png": U,
-    # method.md: "the default call certifies on 45 points instead of 375"
+    # method.md: "the default call certifies on 71 points instead of 375"
     "qdframe solve coulomb-rest-to-rest": S,
     "qdframe solve coulomb-rest-to-rest --inputs free": S,
     # method.md: "stops `stationary` after 34 iterations"
@@ -323,7 +323,7 @@ def _finds(exact: float, unknown: Callable[[dict], float]) -> Callable[[Outcome]
 
 def _points(nodes: int) -> Callable[[Outcome], None]:
     def check(out: Outcome) -> None:
-        """method.md: the default call certifies coulomb-rest-to-rest on 45 points, with free inputs on 375."""
+        """method.md: the default call certifies coulomb-rest-to-rest on 71 points, with free inputs on 375."""
         _solved(out)
         assert _about(out.data["nodes"], nodes), out.data["nodes"]
     return check
@@ -599,7 +599,7 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve block-time-optimal": _finds(4 / 3 * np.sqrt(1.5), lambda data: data["T"]),
     "qdframe solve paper-7.1 --option qp=osqp": _solved,
     "qdframe solve block-stop-stick --nodes 101 --plot docs/figures/block-stop-stick.png": _stop_stick_on_101,
-    "qdframe solve coulomb-rest-to-rest": _points(45),
+    "qdframe solve coulomb-rest-to-rest": _points(71),
     "qdframe solve coulomb-rest-to-rest --inputs free": _points(375),
     "qdframe solve paper-7.1 --direction native --nodes 101": _native_on_71,
     "qdframe solve paper-7.3 --nodes 1001 --no-estimate --no-simulate-start": _iterations([21, 3, 6]),

@@ -69,7 +69,7 @@ from ..functional.held import less_sign_points
 from ..schemes.grid import Grid
 from ..result import SolveResult
 from ..status import Status
-from .switches import switch_times
+from .switches import bound_times, switch_times
 
 BISECTION, REPLAY = "bisection", "replay"
 CERTIFICATES = (BISECTION, REPLAY)
@@ -177,14 +177,23 @@ def misplaced_switches(functional: Functional, result: SolveResult) -> float:
     between a pinned time and the located one, times the largest jump the velocity can make
     (2·max|z|). Zero where the mesh has no pins or the switches have settled on them."""
     pins = np.asarray(functional.grid.switches, dtype=float)
-    if not pins.size or not functional.p:
+    if not pins.size:
         return 0.0
-    located = switch_times(functional, functional.pack(result.x, result.z, result.u, result.selections),
-                           crossings=True, merge=False)
-    if located.size == 0:
+    xi = functional.pack(result.x, result.z, result.u, result.selections)
+    jumps = switch_times(functional, xi, crossings=True, merge=False, bounds=False)
+    kinks = bound_times(functional, xi)
+    if jumps.size + kinks.size == 0:
         return 0.0
-    distance = float(np.max(np.min(np.abs(pins[:, None] - located[None, :]), axis=1)))
-    return distance * 2.0 * float(np.max(np.abs(result.z)))
+    located = np.concatenate([jumps, kinks])
+    nearest = np.argmin(np.abs(pins[:, None] - located[None, :]), axis=1)
+    distance = np.abs(pins - located[nearest])
+    kink = nearest >= jumps.size
+    # a velocity jump misplaced by d moves x by d·(the jump); a bound's kink (z continuous, its slope
+    # jumps) by d²·(the jump of the slope), here at most 2·max|z'| (z's differences over the mesh)
+    slope = np.abs(np.diff(result.z, axis=0)) / np.maximum(np.diff(functional.grid.t), 1e-300)[:, None]
+    jump_part = float(np.max(distance[~kink], initial=0.0)) * 2.0 * float(np.max(np.abs(result.z)))
+    kink_part = float(np.max(distance[kink] ** 2, initial=0.0)) * 2.0 * float(np.max(slope, initial=0.0))
+    return jump_part + kink_part
 
 
 def defects(functional: Functional, result: SolveResult) -> float:

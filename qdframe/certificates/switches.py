@@ -40,15 +40,17 @@ ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (
 SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime
 
 
-def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True, merge: bool = True) -> np.ndarray:
+def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True, merge: bool = True,
+                 bounds: bool = True) -> np.ndarray:
     """The located switch times of the iterate ξ, increasing (empty without sign terms);
+    with `bounds`, also where a state or control bound starts or stops binding (:func:`bound_times`);
     `crossings=False` leaves out the transversal crossings of a surface (s changes sign,
     λ jumps from one end of [−1, 1] to the other), keeping the stops, sticks, break-aways
     and the entries into and exits from sliding; `merge=False` keeps times closer than the
     mesh step apart (the refinement pins a mesh point on each)."""
     grid = functional.grid
     y, lam = functional.arguments(xi), functional.selections(xi)
-    found: list[np.ndarray] = [_bound_times(functional, grid, y, merge)]
+    found: list[np.ndarray] = [bound_times(functional, xi, merge) if bounds else np.zeros(0)]
     if not functional.p:
         return found[0]
     s = functional.switch_values(y, gradients=False)[0]
@@ -65,17 +67,17 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
     return merge_close(times, grid.mesh_times, SAME_TIME * (grid.t[-1] - grid.t[0])) if merge else times
 
 
-def _bound_times(functional: Functional, grid, y: np.ndarray, merge: bool) -> np.ndarray:
+def bound_times(functional: Functional, xi: np.ndarray, merge: bool = False) -> np.ndarray:
     """Where a bound (``state_bounds``, ``control_bounds``) starts or stops binding, located as a
     sign term's stop and break-away: its side g = ±(y_j − limit) ≤ 0 is s, "on" where g = 0, and
     its multiplier over λ (the augmented Lagrangian's shift, :mod:`qdframe.functional.shifts`),
     scaled to λ' = −1 + y/max y, reaches −1 where the bound lets go. A control clipped by its
     bound has a kink there that a mesh point restores the order at, as at a switch. Without
     shifts (no cost) nothing is located."""
-    bounds, shifts = functional.bounds, functional.shifts
+    bounds, shifts, grid = functional.bounds, functional.shifts, functional.grid
     if bounds is None or shifts is None:
         return np.zeros(0)
-    sides = functional.values.bound_sides(y)
+    sides = functional.values.bound_sides(functional.arguments(xi))
     times = []
     for j in range(sides.shape[1]):
         multiplier = np.maximum(shifts.bounds[:, j], 0.0)
