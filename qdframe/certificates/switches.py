@@ -70,17 +70,19 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
 def bound_times(functional: Functional, xi: np.ndarray, merge: bool = False) -> np.ndarray:
     """Where a bound (``state_bounds``, ``control_bounds``) starts or stops binding, located as a
     sign term's stop and break-away: its side g = ±(y_j − limit) ≤ 0 is s, "on" where g = 0, and
-    its multiplier over λ (the augmented Lagrangian's shift, :mod:`qdframe.functional.shifts`),
-    scaled to λ' = −1 + y/max y, reaches −1 where the bound lets go. A control clipped by its
-    bound has a kink there that a mesh point restores the order at, as at a switch. Without
-    shifts (no cost) nothing is located."""
+    its multiplier over λ, max(0, ℓ + s) (s the augmented Lagrangian's shift,
+    :mod:`qdframe.functional.shifts`, 0 without), scaled to λ' = −1 + y/max y, reaches −1 where
+    the bound lets go. A control clipped by its bound has a kink there that a mesh point
+    restores the order at, as at a switch."""
     bounds, shifts, grid = functional.bounds, functional.shifts, functional.grid
-    if bounds is None or shifts is None:
+    if bounds is None:
         return np.zeros(0)
     sides = functional.values.bound_sides(functional.arguments(xi))
+    # the multiplier over λ: max(0, ℓ + s) (the hinge's own residual at a penalty's minimizer, s = 0)
+    multipliers = np.maximum(sides + (shifts.bounds if shifts is not None else 0.0), 0.0)
     times = []
     for j in range(sides.shape[1]):
-        multiplier = np.maximum(shifts.bounds[:, j], 0.0)
+        multiplier = multipliers[:, j]
         top = float(np.max(multiplier))
         if top <= 0.0:
             continue  # never binds

@@ -77,9 +77,9 @@ def descend(
     with _blas().limit(limits=1, user_api="blas"):
         if multipliers.applies(functional, solver):  # a cost: its optimum by the method of multipliers
 
-            def once(xi: np.ndarray | None, budget: int, near: bool) -> SolveResult:
+            def once(xi: np.ndarray | None, budget: int, near: bool, watchdog: bool = True) -> SolveResult:
                 return _descend(functional, solver, search, dataclasses.replace(options, max_iter=budget), progress,
-                                xi, near)
+                                xi, near, watchdog)
 
             return multipliers.optimum(functional, solver, options, once, start, near_solution)
         return _descend(functional, solver, search, options, progress, start, near_solution)
@@ -93,8 +93,9 @@ def _blas() -> ThreadpoolController:
 
 
 def _descend(functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
-             progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool) -> SolveResult:
-    descent = _Descent(functional, solver, search, options, progress, start, near_solution)
+             progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool,
+             watchdog: bool = True) -> SolveResult:
+    descent = _Descent(functional, solver, search, options, progress, start, near_solution, watchdog)
     try:
         while descent.advance():
             pass
@@ -111,7 +112,8 @@ class _Descent:
     worst check's ratios with I ≤ tol, the shrunk ε and δ, the rejected trial points)."""
 
     def __init__(self, functional: Functional, solver: DirectionSolver, search: LineSearch, options: DescentOptions,
-                 progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool) -> None:
+                 progress: ProgressCallback | None, start: np.ndarray | None, near_solution: bool,
+                 watchdog: bool = True) -> None:
         self.functional, self.solver, self.search, self.options, self.progress = (functional, solver, search,
                                                                                    options, progress)
         self.clock = time.perf_counter()
@@ -126,7 +128,8 @@ class _Descent:
         self.uncertified: list[float] = []  # the worst check's value ÷ tolerance at each iterate with I ≤ tol
         # full-step rounds left (:func:`qdframe.descent.steps.watchdog`): where the descent stalls, and
         # (from a coarser grid's solution) where a line search cuts a Newton step
-        self.rounds = {False: WATCHDOG_ROUNDS, True: EAGER_ROUNDS if near_solution else 0}
+        # (no watchdog where the caller says: a multiplier round's stall is its shifts', not a kink's)
+        self.rounds = {False: WATCHDOG_ROUNDS if watchdog else 0, True: EAGER_ROUNDS if near_solution else 0}
         self.eps, self.delta = options.eps, options.delta  # shrunk where ε-stationary but not solved
         self.window = CERTIFY_WINDOW if solver.full_steps else CERTIFY_WINDOW_FIRST_ORDER
         self.optimal = False  # the stop is a stationary point of the objective (no decrease predicted, ε at the floor)

@@ -104,7 +104,7 @@ def settled(functional: Functional, result: SolveResult) -> bool:
 
 
 def optimum(functional: Functional, solver: DirectionSolver, options: DescentOptions,
-            once: Callable[[np.ndarray | None, int, bool], SolveResult], start: np.ndarray | None,
+            once: Callable[..., SolveResult], start: np.ndarray | None,
             near: bool) -> SolveResult:
     """A descent to the cost's optimum (module docstring): `once(ξ, max_iter, near)` descends once
     on the functional (its λ and shifts as they stand) from ξ (None: the model's start). From a
@@ -171,10 +171,11 @@ def _full_step(functional: Functional, solver: DirectionSolver, options: Descent
 
 
 def rounds(functional: Functional, solver: DirectionSolver, options: DescentOptions, first: SolveResult,
-           once: Callable[[np.ndarray | None, int, bool], SolveResult], start: np.ndarray, budget: int,
+           once: Callable[..., SolveResult], start: np.ndarray, budget: int,
            spent: list[tuple[float, int]] | None = None) -> SolveResult:
     """The descent's result after the multipliers' rounds (module docstring). `first`: the
-    descent at the functional's λ and shifts; `once(ξ, max_iter, near)` descends once more;
+    descent at the functional's λ and shifts; `once(ξ, max_iter, near, watchdog)` descends once
+    more (a round without the watchdog's full steps: its stall is its shifts', not a kink's);
     `start` the descent's own start; `budget` its iterations in all. Where a round takes no
     step (the decrease the moved shifts ask for is below the objective's rounding, which the
     cost's size sets), the Newton step is taken whole where it lowers the violation; where a
@@ -213,11 +214,11 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         moved = base.moved(residuals) if warm else zeros(residuals)
         functional.set_multipliers(moved.scaled(functional.penalty / weight), weight)
         earlier = result
-        result = once(xi if warm else start, budget - used, True)
+        result = once(xi if warm else start, budget - used, True, False)
         if result.iterations == 0 and result.status != Status.SOLVED:
             trial = _full_step(functional, solver, options, xi)
             if violation(functional.constraint_residuals(trial)) < now:
-                result = _after(result, once(trial, budget - used, True))
+                result = _after(result, once(trial, budget - used, True, False))
         spent.append((weight, result.iterations))
         result = _after(earlier, result)
         last_violation, count = now, count + 1
