@@ -145,6 +145,23 @@ def block_to_mark(ns, out):
     assert result.solved and result.parameters["mu"] == pytest.approx(2.0, abs=1e-6)
 
 
+def guide_optimal_control(ns, out):
+    # "solved 2.0555555… (J* = 37/18)", "the last λ (≤ 1e6)", "1.5: the bound binds on [0, 1/2]"
+    effort = ns["effort"]
+    assert effort.solved and effort.cost == pytest.approx(37 / 18, abs=1e-6 * 37 / 18)
+    assert effort.options["penalty"] <= 1e6
+    u, t = np.asarray(effort.u)[1:, 0], effort.t[1:]
+    assert float(np.max(np.abs(u))) == pytest.approx(1.5, abs=1e-7) and np.all(u[t < 0.45] >= 1.5 - 1e-7)
+
+
+def docking(ns, out):
+    # "solved 1.5625099…, x(T) = (1, 0.1016)", "0 and 0.1727: where the push stops binding"
+    docked = ns["docked"]
+    assert docked.solved and docked.cost == pytest.approx(1.5625099, abs=1e-6)
+    assert docked.x[-1] == pytest.approx([1.0, 0.1016], abs=1e-4)
+    assert [round(float(t), 4) for t in docked.switch_times] == [0.0, 0.1727]
+
+
 def hand_written_coefficient(ns, out):
     # "the same model by hand": the same μ = 2 (its bounds (0.5, 5) hold it)
     result = qdframe.solve(ns["HandWrittenCoefficient"]())
@@ -315,6 +332,8 @@ CHECKS: dict[tuple[str, str], Callable] = {
     ("docs/authoring.md", "class HeatedRoom(SetModel):"): heated_room,
     ("docs/authoring.md", "Room = define_model("): room_script,
     ("docs/authoring.md", "class BlockToMark(SetModel):"): block_to_mark,
+    ("docs/guide.md", "class LeastEffort(SetModel):"): guide_optimal_control,
+    ("docs/authoring.md", "class Docking(SetModel):"): docking,
     ("docs/authoring.md", "class HandWrittenCoefficient(InclusionModel):"): hand_written_coefficient,
     ("docs/authoring.md", "class CoulombPendulum(SetModel):"): coulomb_pendulum,
     ("docs/authoring.md", "class Puck(SetModel):"): puck,
