@@ -227,6 +227,8 @@ STATUSES: dict[str, Status] = {
     "qdframe solve paper-7.2 --xT=3,0": ST,
     # friction.md: "`uncertified`: the discrete problem is solved"
     "qdframe solve block-stop-stick --nodes 101 --plot docs/figures/block-stop-stick.png": U,
+    # README: "least ∫u² moving a Coulomb block rest to rest, |u| ≤ 1.5: J* = 37/18"
+    "qdframe solve least-effort-bounded": S,
     # method.md: "the default call certifies on 71 points instead of 375"
     "qdframe solve coulomb-rest-to-rest": S,
     "qdframe solve coulomb-rest-to-rest --inputs free": S,

@@ -53,13 +53,13 @@ def test_the_penalty_is_raised_from_the_models_own(fastest):
 
 
 def test_a_cost_with_minimum_zero_takes_one_round():
-    """paper-7.1 (∫|x1| dt, zero on its solution): the first descent of the method of multipliers
-    (qdframe.descent.multipliers), at PENALTY_CAP with no shift, is solved with the cost at its
-    least value 0, and no round follows."""
+    """paper-7.1 (∫|x1| dt, zero on its solution): the method of multipliers (qdframe.descent.
+    multipliers) finds a solution without the cost, and its first round at λ = MULTIPLIER_START
+    ends there, the cost at its least value 0, with no shift: one round."""
     result = qdframe.solve("paper-7.1", nodes=101)
     assert result.solved and result.cost <= 1e-12
-    assert result.options["penalty_rounds"] == [(multipliers.PENALTY_CAP, result.iterations)]
-    assert result.options["penalty"] == multipliers.PENALTY_CAP
+    assert result.options["penalty_rounds"] == [(multipliers.MULTIPLIER_START, result.iterations)]
+    assert result.options["penalty"] == multipliers.MULTIPLIER_START and result.options["optimality_gap"] <= 1e-12
 
 
 def _result(status: Status, I: float, checks: dict | None = None, stationary: bool = False) -> SimpleNamespace:

@@ -181,7 +181,28 @@ def check_model(model: InclusionModel, samples: int = 64, seed: int = 0, tol: fl
         for kind, groups in (("max-group", cost.max_groups), ("min-group", cost.min_groups)):
             for index, fn in enumerate(groups):
                 report.pieces.append(checker.run(f"cost {kind} {index + 1}", lambda yy, _ps, f=fn: f(yy), value_shape=(None,)))
+        if cost.hessian is not None:  # the smooth integrand's gradient (its one piece's) against its Hessian
+            report.pieces.append(checker.run(
+                "cost Hessian", lambda yy, _ps: (np.asarray(cost.max_groups[0](yy)[1])[:, 0, :], cost.hessian(yy)),
+                value_shape=(None,)))
+        if cost.terminal is not None:  # M(x), then ∇M against ∇²M, at the sampled states
+            states_only = _Checker(y[:, :n], names[:n], tol)
+            report.pieces.append(states_only.run("terminal cost", lambda xx, _ps: _terminal(cost.terminal, xx, 0),
+                                                 value_shape=(None,)))
+            report.pieces.append(states_only.run("terminal cost Hessian",
+                                                 lambda xx, _ps: _terminal(cost.terminal, xx, 1), value_shape=(None,)))
     return report
+
+
+def _terminal(terminal: Callable, x: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """A terminal cost at every row of x as a group: (M (N, 1), ∇M (N, 1, n)) for order 0,
+    (∇M (N, n), ∇²M (N, n, n)) for order 1."""
+    values = [terminal(row) for row in np.asarray(x, dtype=float)]
+    if order == 0:
+        return (np.array([[float(v)] for v, _, _ in values]),
+                np.array([np.asarray(g, dtype=float)[None, :] for _, g, _ in values]))
+    return np.array([np.asarray(g, dtype=float) for _, g, _ in values]), np.array([np.asarray(h, dtype=float)
+                                                                                   for _, _, h in values])
 
 
 def _as_group(pair, dim: int | None = None):

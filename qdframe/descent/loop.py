@@ -77,9 +77,15 @@ def descend(
     with _blas().limit(limits=1, user_api="blas"):
         if multipliers.applies(functional, solver):  # a cost: its optimum by the method of multipliers
 
+            done = [0]  # iterations of the descents so far: progress counts on over them
+
             def once(xi: np.ndarray | None, budget: int, near: bool, watchdog: bool = True) -> SolveResult:
-                return _descend(functional, solver, search, dataclasses.replace(options, max_iter=budget), progress,
-                                xi, near, watchdog)
+                shown = None if progress is None else (
+                    lambda record, used=done[0]: progress(dataclasses.replace(record, iteration=record.iteration + used)))
+                result = _descend(functional, solver, search, dataclasses.replace(options, max_iter=budget), shown,
+                                  xi, near, watchdog)
+                done[0] += result.iterations
+                return result
 
             return multipliers.optimum(functional, solver, options, once, start, near_solution)
         return _descend(functional, solver, search, options, progress, start, near_solution)

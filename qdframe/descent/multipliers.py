@@ -108,21 +108,17 @@ def optimum(functional: Functional, solver: DirectionSolver, options: DescentOpt
             near: bool) -> SolveResult:
     """A descent to the cost's optimum (module docstring): `once(ξ, max_iter, near)` descends once
     on the functional (its λ and shifts as they stand) from ξ (None: the model's start). From a
-    start that is not a coarser grid's solution (`near`), a first descent at PENALTY_CAP finds a
-    point that nearly meets the constraints, the cost barely felt (from rest, a block with
-    friction the cost keeps still at λ = 100: its selections stick and the semismooth step cannot
-    leave); the rounds then go from there at λ = MULTIPLIER_START."""
+    start that is not a coarser grid's solution (`near`), a first descent without the cost finds a
+    solution of the constraints (from rest, a block with friction the cost keeps still at λ = 100:
+    its selections stick and the semismooth step cannot leave; a motor whose states are 1e-2 in
+    size had its cost win at λ = 1e6); the rounds then go from there at λ = MULTIPLIER_START."""
     budget = options.max_iter
     weight = max(functional.penalty, MULTIPLIER_START)
     feasible = None
     if not near and functional.shifts is None and budget > 0:
-        functional.set_multipliers(None, PENALTY_CAP)
-        feasible = once(start, budget, False)
+        with functional.without_cost():  # a solution first, the cost not felt
+            feasible = once(start, budget, False)
         start, budget = iterate(functional, feasible), budget - feasible.iterations
-        if settled(functional, feasible):  # (a cost whose least value is 0: the constraints' solution is its optimum)
-            feasible.penalty = PenaltyRecord(PENALTY_CAP, gap(functional, functional.constraint_residuals(start)),
-                                             ((PENALTY_CAP, feasible.iterations),))
-            return feasible
         functional.set_multipliers(None, weight)
     else:
         functional.set_multipliers(functional.shifts, max(functional.penalty, weight))
@@ -132,8 +128,7 @@ def optimum(functional: Functional, solver: DirectionSolver, options: DescentOpt
     if budget <= 0:
         return first
     origin = start if start is not None else functional.initial_point()
-    spent = [] if feasible is None else [(PENALTY_CAP, feasible.iterations)]
-    return rounds(functional, solver, options, first, once, origin, options.max_iter, spent)
+    return rounds(functional, solver, options, first, once, origin, options.max_iter)
 
 
 def _after(earlier: SolveResult, later: SolveResult) -> SolveResult:
@@ -171,8 +166,7 @@ def _full_step(functional: Functional, solver: DirectionSolver, options: Descent
 
 
 def rounds(functional: Functional, solver: DirectionSolver, options: DescentOptions, first: SolveResult,
-           once: Callable[..., SolveResult], start: np.ndarray, budget: int,
-           spent: list[tuple[float, int]] | None = None) -> SolveResult:
+           once: Callable[..., SolveResult], start: np.ndarray, budget: int) -> SolveResult:
     """The descent's result after the multipliers' rounds (module docstring). `first`: the
     descent at the functional's λ and shifts; `once(ξ, max_iter, near, watchdog)` descends once
     more (a round without the watchdog's full steps: its stall is its shifts', not a kink's);
@@ -184,7 +178,7 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
     functional takes them: :meth:`Functional.take_multipliers`)."""
     result = first
     last_violation, count, move = np.inf, 0, None
-    spent = [*(spent or []), (functional.penalty, first.iterations - sum(k for _, k in spent or []))]  # (λ, iterations)
+    spent = [(functional.penalty, first.iterations)]  # (λ, iterations) of each round, the first's with the solution's
     while True:
         xi = iterate(functional, result)
         residuals = functional.constraint_residuals(xi)

@@ -36,7 +36,8 @@ Z = ∫_0^t z and its adjoint) comes from the grid, built from the scheme's own 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -139,6 +140,17 @@ class Functional(Layout):
         (:mod:`qdframe.descent.multipliers`)."""
         self.values.shifts = shifts
         self.values.penalty = float(weight)
+
+    @contextmanager
+    def without_cost(self) -> Iterator[None]:
+        """The functional as if the model had no cost (I alone, λ = 1) inside the block: a
+        feasibility solve before the cost's optimum (:mod:`qdframe.descent.multipliers`)."""
+        cost, penalty, shifts = self.values.cost, self.values.penalty, self.values.shifts
+        self.values.cost, self.jacobians.cost, self.values.penalty, self.values.shifts = None, None, 1.0, None
+        try:
+            yield
+        finally:
+            self.values.cost, self.jacobians.cost, self.values.penalty, self.values.shifts = cost, cost, penalty, shifts
 
     def take_multipliers(self, other: "Functional") -> None:
         """Another functional's λ and shifts (interpolated to this grid), where it has a cost

@@ -86,22 +86,16 @@ class Values:
     bounds: "Bounds | None" = None  # lo ≤ y_j ≤ hi of the bounded states and controls (β)
 
     def terms(self, xi: np.ndarray) -> Terms:
-        """φ, χ, ω, υ, σ, the cost, I and the objective at ξ."""
+        """φ, χ, ω, υ, σ, the cost, I and the objective at ξ (with shifts: the terms and I
+        unshifted, what the checks read, and the objective shifted, :func:`.shifts.shifted_sums`)."""
+        if self.shifts is not None:
+            return _shifted_terms(self, xi)
         x, z = self.layout.split(xi)
         phi, omega, sigma, cost, eta = self._set_terms(xi)
-        shifts = self.shifts
-        if shifts is None:
-            chi = 0.5 * float(np.sum(self.end_residual(x, z) ** 2))
-            upsilon = 0.5 * self.integral(np.sum(self.consistency(x, z) ** 2, axis=1))
-        else:  # ½(r + s)² − ½s² = r·(½r + s): the shifted square less its constant (:meth:`_shifted_set_terms`)
-            end, consistency = self.end_residual(x, z), self.consistency(x, z)
-            chi = float(np.sum(equation_part(end, shifts.end)))
-            upsilon = self.integral(np.sum(equation_part(consistency, shifts.consistency), axis=1))
+        chi = 0.5 * float(np.sum(self.end_residual(x, z) ** 2))
+        upsilon = 0.5 * self.integral(np.sum(self.consistency(x, z) ** 2, axis=1))
         total = phi + chi + omega + upsilon + sigma + eta
         objective = cost + self.penalty * total if self.cost is not None else total
-        if shifts is not None:  # the terms and I unshifted (what the checks read); the objective shifted
-            plain = replace(self, shifts=None).terms(xi)
-            return replace(plain, objective=objective)
         return Terms(phi, chi, omega, upsilon, sigma, cost, total, objective, eta)
 
     def ray(self, xi: np.ndarray, direction: np.ndarray) -> Callable[[float], float]:
@@ -361,6 +355,24 @@ class Values:
         for fn in self.cost.min_groups:  # type: ignore[union-attr]
             total += _reduce_last(np.minimum, self.pieces.scalar_pieces(fn, x, "cost min-group")[0])
         return total
+
+
+def _shifted_terms(self: Values, xi: np.ndarray) -> Terms:
+    """:meth:`terms` with the augmented Lagrangian's shifts, every residual evaluated once."""
+    x, z = self.layout.split(xi)
+    y, lam = self.layout.arguments(xi), self.layout.selections(xi)
+    shifts, r = self.shifts, self.constraint_residuals(x, y, z, lam)
+    plain = replace(shifts, **{name: np.zeros_like(getattr(shifts, name)) for name in
+                               ("consistency", "end", "surface", "blocks", "selections", "bounds")})
+    phi, omega, sigma = shifted_sums(r, plain, self.integral)  # no shift: ½r², ½max(0, ℓ)²
+    chi, upsilon = 0.5 * float(np.sum(r.end**2)), 0.5 * self.integral(np.sum(r.consistency**2, axis=1))
+    cost = self.cost_value(x, y) if self.cost is not None else 0.0
+    eta = self.held.eta(xi) if self.held is not None else 0.0
+    moved = shifted_sums(r, shifts, self.integral)
+    shifted = sum(moved) + float(np.sum(equation_part(r.end, shifts.end))) + self.integral(
+        np.sum(equation_part(r.consistency, shifts.consistency), axis=1)) + eta
+    total = phi + chi + omega + upsilon + sigma + eta
+    return Terms(phi, chi, omega, upsilon, sigma, cost, total, cost + self.penalty * shifted, eta)
 
 
 @dataclass(frozen=True)

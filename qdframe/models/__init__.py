@@ -13,5 +13,8 @@
 - ``identification.py``: problems whose end time or coefficient is unknown, with exact answers
   (``block-stopping-time``, ``relay-period``, ``block-friction-coefficient``, ``block-time-optimal``);
 - ``bounded_input.py``: problems with a bounded input that the nosnoc peer states too
-  (``coulomb-rest-to-rest``, ``sliding-mode-terminal``).
+  (``coulomb-rest-to-rest``, ``sliding-mode-terminal``);
+- ``optimal_control.py``: costs whose least value is not 0, a control bound and a terminal cost
+  (``least-effort-block``, ``least-effort-bounded``, ``lq-terminal``), their exact optima in
+  ``optimal_references.py``.
 """

@@ -173,3 +173,32 @@ def test_bad_arguments_exit_2_with_one_line(argv, capsys):
     assert cli_main(["check-model", *argv]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("fault, piece", [("hessian", "cost Hessian"), ("terminal", "terminal cost Hessian")])
+def test_a_wrong_cost_hessian_or_terminal_cost_is_named(fault, piece):
+    """The optimal-control hooks (issue 53): a smooth cost's Hessian and a terminal cost's
+    gradient and Hessian are held to differences of the gradients like every piece."""
+
+    class Smooth(Faulty):
+        def cost(self):
+            def integrand(y):  # u² + a²
+                return (y[:, 2] ** 2 + y[:, 0] ** 2)[:, None], np.stack([2 * y[:, 0], 0 * y[:, 1], 2 * y[:, 2]], 1)[:, None]
+
+            def hessian(y):
+                out = np.zeros((y.shape[0], 3, 3))
+                out[:, 0, 0], out[:, 2, 2] = 2.0, 3.0 if self.fault == "hessian" else 2.0
+                return out
+
+            def terminal(x):  # (a − 1)²·b
+                hess = np.array([[2 * x[1], 2 * (x[0] - 1)], [2 * (x[0] - 1), 0.0]])
+                if self.fault == "terminal":
+                    hess[0, 1] = hess[1, 0] = 0.0
+                return (x[0] - 1) ** 2 * x[1], np.array([2 * (x[0] - 1) * x[1], (x[0] - 1) ** 2]), hess
+
+            return Cost(max_groups=(integrand,), hessian=hessian, terminal=terminal)
+
+    assert check_model(type("Right", (Smooth,), {"fault": "none"})()).ok
+    report = check_model(type("Wrong", (Smooth,), {"fault": fault})())
+    (failure,) = report.failures
+    assert failure.label == piece and failure.status == "wrong gradient", report.table()
