@@ -38,6 +38,14 @@ def test_the_default_call_finds_the_shortest_time_and_the_bang_bang_motion(faste
     assert fastest.solution_error <= fastest.error_estimate <= 1e-6 * max(1.0, float(np.max(np.abs(fastest.x))))
 
 
+def test_the_cost_is_the_time_and_the_message_its_estimate(fastest):
+    """Issue 55: the summary showed `cost 1.653` for T = 1.633 (Radau IIA's weight h/4 at t_0, a
+    velocity's in F(x_0), counted in ∫1 dt) and two error estimates (the grid's in the message,
+    the sum in the table). The cost is the scheme's quadrature, ∫1 dt = T; the message says the sum."""
+    assert fastest.cost == pytest.approx(fastest.T, abs=1e-12)
+    assert f"error estimate {fastest.error_estimate:.1e}" in fastest.message
+
+
 def test_the_gap_2_lambda_I_is_the_distance_to_the_least_time(fastest):
     """The first-order optimality gap T* − T_λ ≈ 2λ·I (optimum's docstring), against the exact T*."""
     gap = fastest.options["optimality_gap"]

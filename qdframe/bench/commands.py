@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..argtypes import counts, integer, names, node_counts, positive_float, tolerances, vector, writable
 from ..errors import InputError
+from ..registry import make_peer
 from .cases import SUITES
 
 
@@ -301,6 +302,11 @@ def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
             say(f"skipped direction {name}: {why}")
         if args.peers and not any(case.peer for case in sweep.cases):
             say("--peers: no model of the sweep is one the peers can state")
+    for name in sorted({case.peer for case in sweep.cases if case.peer}):  # said even with --quiet
+        reason = make_peer(name).unavailable()
+        if reason is not None:
+            print(f"qdframe: peer {name} is not available here ({reason}); its runs are recorded `failed`",
+                  file=sys.stderr)
     try:
         outcome = run_sweep(sweep, args.out, resume=args.resume, executor=args.executor, scheduler=args.scheduler,
                             workers=args.workers, progress=say, command=command)

@@ -101,7 +101,8 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
         objective=terms.objective,
         I=terms.I,
         terms={"phi": terms.phi, "chi": terms.chi, "omega": terms.omega, "upsilon": terms.upsilon, "sigma": terms.sigma},
-        cost=terms.cost if functional.cost is not None else None,
+        cost=functional.values.cost_value(x, functional.arguments(xi), quadrature=True) if functional.cost is not None
+        else None,
         boundary_error=residuals.boundary_error,
         inclusion_residual=residuals.inclusion_residual,
         surface_error=residuals.surface_error,

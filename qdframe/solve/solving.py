@@ -176,7 +176,12 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
     extra = optimum.penalty_error(rounds)
     result.penalty = PenaltyRecord(weight, optimum.gap(result, weight), tuple((r.weight, r.iterations) for r in rounds))
     if result.error_estimate is not None:
+        grid = result.error_estimate
         result.error_estimate += extra
+        said = f"error estimate {grid:.1e} ({result.certificate})"  # the verdict's words: the sum in their place
+        result.remarks = [remark.replace(said, f"error estimate {result.error_estimate:.1e} ({result.certificate} "
+                                                f"{grid:.1e} and the penalty's part {extra:.1e})", 1)
+                          for remark in result.remarks]
     if result.status == Status.SOLVED:
         bound = target * functional.model.accuracy_scale(result.x)
         if result.error_estimate is not None and result.error_estimate > bound:

@@ -418,3 +418,14 @@ def test_a_direction_with_an_option_is_checked_before_any_run_and_sweeps_gauss_n
         bench_cases.plan("quick", directions=["native[qp=osqp]"])
     sweep = bench_cases.plan("quick", models=["paper-7.1"], directions=["gauss-newton[qp=osqp]"])
     assert {case.knob for case in sweep.cases} == {"N=11", "N=41", "N=161", "accuracy=0.001"}
+
+
+def test_a_missing_peer_is_said_on_stderr_even_quiet(monkeypatch, tmp_path, capsys):
+    """Issue 55: `bench run --peers` without nosnoc printed `nosnoc / ipopt N=11: failed, —` and
+    exited 0, the reason only in report.md; it now says so in one line (with the pip command)."""
+    monkeypatch.setattr(bench_peers, "nosnoc_available", lambda: "nosnoc is not usable here; pip install 'qdframe[peers]'")
+    argv = ["bench", "run", "--models", "block-stop-stick", "--directions", "gauss-newton", "--nodes", "11",
+            "--accuracy", "none", "--bvp-tols", "none", "--peers", "--out", str(tmp_path / "out"), "--quiet"]
+    assert qdframe_main(argv) == 0
+    err = capsys.readouterr().err
+    assert "peer nosnoc is not available here" in err and "qdframe[peers]" in err
