@@ -149,7 +149,8 @@ def _exit_codes() -> str:
         lines.append(f"  {code}  {EXIT_MEANINGS[status]}")
         if status is Status.SOLVED:
             lines.append(f"  {EXIT_ERROR}  an error stopped the run without a result (e.g. the model returned NaN)")
-            lines.append(f"  {EXIT_USAGE}  bad input: one line names the field and the expected form")
+            lines.append(f"  {EXIT_USAGE}  bad input (one line names the field and the expected form), or a plugin's own code "
+                         "raised (one line names the plugin, the method and the line)")
     return "\n".join(lines)
 
 

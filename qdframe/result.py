@@ -95,7 +95,7 @@ class GridsRecord:
     iterations_per_grid: tuple[int, ...]
     signs: str
     selection_scale: float
-    inputs: str
+    inputs: str  # "held", "free", or "none" (the model has no fixed set of inputs to hold)
     uniform: bool
 
 

@@ -58,4 +58,4 @@ EXIT_CODES: dict[Status, int] = {
 TIME_LIMIT = "time_limit"
 
 EXIT_ERROR = 1  # an error stopped the run before it had a result
-EXIT_USAGE = 2  # bad input: one line names the field and the expected form
+EXIT_USAGE = 2  # bad input (the field and the expected form named), or a plugin's own code raised (the plugin named)

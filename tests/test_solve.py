@@ -322,3 +322,15 @@ def test_with_i_below_tol_the_descent_goes_on_while_the_pointwise_checks_shrink_
         assert "not pointwise: consistency" in result.message
     else:  # 0.9 per iteration: 1e-6 → 1e-8 in about 44 iterations
         assert 40 <= result.iterations <= 60
+
+
+def test_issue_55_small_things_max_nodes_below_the_first_mesh_and_inputs_none():
+    """`--accuracy 1e-6 --max-nodes 5` returned 41 points with exit 0, the cap silently ignored:
+    now refused naming the field and the least value; a model with no fixed set of inputs says
+    `inputs none`, not `free`."""
+    with pytest.raises(qdframe.InputError, match=r"^max_nodes: expected an integer ≥ 41 when the mesh is refined"):
+        qdframe.solve("block-stop-stick", max_nodes=40)
+    assert qdframe.solve("block-stop-stick", max_nodes=41).nodes == 41
+    assert qdframe.solve("block-stop-stick", nodes=11, max_nodes=5).nodes == 11  # a fixed grid: no refinement to cap
+    assert qdframe.solve("paper-7.2").options["inputs"] == "none"
+    assert qdframe.solve("coulomb-rest-to-rest").options["inputs"] == "held"

@@ -27,6 +27,7 @@ from ..certificates.estimates import CERTIFICATES
 from ..descent.options import EPS_FLOOR, DescentOptions
 from ..directions.base import DirectionSolver
 from ..errors import InputError
+from ..schemes.grid import Grid
 from ..line_searches.base import LineSearch
 from ..model import InclusionModel
 from ..registry import make_direction, make_line_search
@@ -111,6 +112,12 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
         raise InputError("estimate", "True when the mesh is refined to an accuracy (estimate=False needs nodes= or "
                          "mesh= without accuracy=)", estimate)
     requested = (ACCURACY_SCHEME if refining else model.default_scheme) if scheme is None else scheme
+    if refining and nodes is None and mesh is None:  # the refinement starts on a mesh it cannot go below
+        first = Grid.from_mesh(np.linspace(0.0, model.T, ACCURACY_START_NODES), requested).nodes
+        if isinstance(max_nodes, (int, np.integer)) and not isinstance(max_nodes, bool) and max_nodes < first:
+            raise InputError("max_nodes", f"an integer ≥ {first} when the mesh is refined (its first mesh, "
+                                          f"{ACCURACY_START_NODES - 1} intervals of {getattr(requested, 'name', requested)}, "
+                                          f"has {first} points), or nodes= for a fixed grid", max_nodes)
     solver = make_direction(direction)
     cost = model.cost()
     needs = [what for what, present in (("state_bounds or control_bounds", getattr(model, "bounds_table", None)),

@@ -204,8 +204,11 @@ def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveRes
     eps_reached, delta_reached = min(shrunk_to) if shrunk_to else (options.eps, options.delta)
     result.descent = dataclasses.replace(result.descent, eps=eps_reached, delta=delta_reached,
                                          max_iter=options.max_iter, scheme=functional.grid.scheme.name)
+    # "none": held asked (the default) and nothing to hold, the model has no fixed set of inputs
+    inputs = "held" if functional.held else "none" if plan.plan.inputs == "held" and not functional.model.has_unknowns \
+        else "free"
     result.grids = GridsRecord(run.first_start, tuple(grids), tuple(per_grid), plan.signs, plan.selection_scale,
-                               "held" if functional.held else "free", functional.grid.uniform)
+                               inputs, functional.grid.uniform)
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
     if result.status == Status.MAX_ITER:  # the whole budget, over all grids
         result.reason = f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
