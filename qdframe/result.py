@@ -150,6 +150,7 @@ class SolveResult:
     checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.descent.checks
     binding_check: str = ""  # the check with the largest value/tol
     error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.certificates.estimates); None: none made
+    multipliers: np.ndarray | None = None  # a cost's: (N, n) the costates μ of x' = f (qdframe.descent.multipliers.costates)
     certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.certificates.estimates)
     accuracy: float | None = None  # the target: solved promises error_estimate ≤ accuracy·max(1, max|x|)
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
@@ -242,11 +243,14 @@ class SolveResult:
     def to_dataframe(self) -> "pandas.DataFrame":
         """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
         per state (the model's state names), z as x1' …, then u and λ where the model has them
-        named as the model names them), with attrs model, status, T, free_T and ``parameter_<name>``. Needs pandas: ``pip install 'qdframe[frames]'``."""
+        named as the model names them), then a cost's multipliers μ_x1 … (`multipliers`), with attrs model, status, T, free_T and ``parameter_<name>``. Needs pandas: ``pip install 'qdframe[frames]'``."""
         pd = _optional("pandas", "to_dataframe")
         names = self._columns()
         blocks = [self.x, self.z] + [part for part in (self.u, self.selections) if part is not None]
         labels = names["x"] + names["z"] + names["u"] + names["selections"]
+        if self.multipliers is not None:  # a cost's: the multipliers μ of x' = f, "μ_x1", …
+            blocks.append(np.asarray(self.multipliers, dtype=float))
+            labels = labels + [f"μ_{name}" for name in names["x"]]
         index = pd.Index(np.asarray(self.t, dtype=float), name="t")
         frame = pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
         frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),

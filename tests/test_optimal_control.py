@@ -37,6 +37,28 @@ def test_the_default_call_is_solved_at_the_exact_optimum(solved):
     assert error <= result.error_estimate
 
 
+def test_the_multipliers_are_the_costates(solved):
+    """result.multipliers (the multipliers μ of x' = f) are −p, p Pontryagin's costates of the
+    exact optimum (qdframe.models.optimal_references), from the second point on (the first is
+    not in Radau IIA's rule)."""
+    model, result = solved
+    exact = -model.reference().costates(result.t)
+    assert result.multipliers.shape == result.x.shape
+    # measured 2026-11-28: 7.3e-10, 8.3e-5 (the bound's kink; |p| up to 4.8) and 2.7e-7 (|p| up to 37)
+    assert np.max(np.abs(result.multipliers[1:] - exact[1:])) <= COSTATE_ERROR[model.name]
+
+
+def test_the_data_frame_holds_u_and_the_multipliers():
+    pytest.importorskip("pandas")
+    result = qdframe.solve(load_model("lq-terminal"))
+    frame = result.to_dataframe()
+    assert list(frame.columns) == ["p", "v", "p'", "v'", "u", "μ_p", "μ_v"]
+    assert np.array_equal(frame["μ_v"].to_numpy(), result.multipliers[:, 1])
+
+
+COSTATE_ERROR = {"least-effort-block": 1e-8, "least-effort-bounded": 2e-4, "lq-terminal": 1e-6}
+
+
 def test_no_penalty_above_1e6(solved):
     _, result = solved
     assert result.options["penalty"] <= multipliers.PENALTY_CAP

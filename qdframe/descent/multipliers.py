@@ -217,4 +217,25 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         result = _after(earlier, result)
         last_violation, count = now, count + 1
     result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent), move or 0.0)
+    result.multipliers = costates(functional, iterate(functional, result))
     return result
+
+
+def costates(functional: Functional, xi: np.ndarray) -> np.ndarray | None:
+    """The multipliers of the dynamics, (N, n): per state x_i, the density λ·(r + s) of the
+    multiplier of its block's residual (an equation's r = z_i − f_i(y); a set's two sides
+    signed, max(0, ℓ₊ + s₊) − max(0, ℓ₋ + s₋)): the multipliers μ of L = 𝒥 + ∫μ·(x' − f),
+    μ = −p with p Pontryagin's costates (H = c + p·f), to the scheme's order, with no estimate
+    (docs/guide.md, "Optimal control", gives what was measured). None where a block has several
+    coordinates or a state has none (a resolved one)."""
+    blocks = functional.blocks
+    if any(block.size != 1 for block in blocks) or len(blocks) != functional.n:
+        return None
+    residuals = functional.constraint_residuals(xi)
+    s = functional.shifts if functional.shifts is not None else zeros(residuals)
+    sides = residuals.blocks + s.blocks
+    out = np.zeros((xi.shape[0], functional.n))
+    for b, block in enumerate(blocks):
+        plus = sides[:, b, 0] if s.point[b] else np.maximum(sides[:, b, 0], 0.0)
+        out[:, block.coords[0]] = plus if s.point[b] else plus - np.maximum(sides[:, b, 1], 0.0)
+    return functional.penalty * out
