@@ -104,9 +104,9 @@ def guide_python(ns, out):
     # "status, I and the residuals in a few lines"
     shown = repr(result)
     assert "solved" in shown and "I " in shown and "residuals" in shown and len(shown.splitlines()) <= 8
-    # "indexed by t: columns x1, x2, x1', x2'"
+    # "indexed by t: columns x1, x2, x1', x2' (u, λ), μ_x1, μ_x2" (7.1 has a cost: its multipliers)
     df = ns["df"]
-    assert df.index.name == "t" and list(df.columns) == ["x1", "x2", "x1'", "x2'"]
+    assert df.index.name == "t" and list(df.columns) == ["x1", "x2", "x1'", "x2'", "μ_x1", "μ_x2"]
     # "x, z over (t, state), the status and residuals in attrs"
     ds = ns["ds"]
     assert ds["x"].dims == ds["z"].dims == ("t", "state") and ds.attrs["status"] == "solved"

@@ -63,10 +63,11 @@ def test_dataframe_is_indexed_by_t_with_a_column_per_state(masses):
     assert df.loc[masses.t[4], "x2"] == masses.x[4, 1]
 
 
-def test_dataframe_without_controls_or_selections_has_only_x_and_z(paper71):
+def test_dataframe_without_controls_or_selections_has_only_x_and_z_and_a_costs_multipliers(paper71):
     pytest.importorskip("pandas")
-    df = paper71.to_dataframe()
-    assert list(df.columns) == ["x1", "x2", "x1'", "x2'"] and df.shape == (11, 4)
+    df = paper71.to_dataframe()  # 7.1 has a cost (∫|x1|): its multipliers μ of x' = f follow
+    assert list(df.columns) == ["x1", "x2", "x1'", "x2'", "μ_x1", "μ_x2"] and df.shape == (11, 6)
+    assert np.array_equal(df[["μ_x1", "μ_x2"]].to_numpy(), paper71.multipliers)
 
 
 def test_repeated_names_get_their_number(masses):
