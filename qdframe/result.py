@@ -151,6 +151,7 @@ class SolveResult:
     binding_check: str = ""  # the check with the largest value/tol
     error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.certificates.estimates); None: none made
     multipliers: np.ndarray | None = None  # a cost's: (N, n) the costates μ of x' = f (qdframe.descent.multipliers.costates)
+    binding: dict[str, list[list[float]]] = field(default_factory=dict)  # bound side -> [[t_a, t_b], …] where it binds
     certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.certificates.estimates)
     accuracy: float | None = None  # the target: solved promises error_estimate ≤ accuracy·max(1, max|x|)
     switch_times: np.ndarray = field(default_factory=lambda: np.zeros(0))  # where a selection changes regime
@@ -337,10 +338,13 @@ class SolveResult:
             if check is not None:
                 text += f"  (tol {check['tol']:.1e}{', binds' if name == self.binding_check else ''})"
             rows.append((labels[name], text))
-        if "bounds" in self.checks:  # state_bounds, control_bounds: the largest violation
+        if "bounds" in self.checks:  # state_bounds, control_bounds: the largest violation, and where they bind
             check = self.checks["bounds"]
             rows.append(("bound violation", f"{check['value']:.3e}  (tol {check['tol']:.1e}"
                          + (", binds)" if self.binding_check == "bounds" else ")")))
+            rows.append(("bounds binding", "; ".join(
+                f"{name} on " + ", ".join(f"[{a:.6g}, {b:.6g}]" for a, b in runs) for name, runs in self.binding.items())
+                or "none"))
         bound = None if self.accuracy is None else self.accuracy * max(1.0, float(np.max(np.abs(self.x))))
         how = {"bisection": "from the bisected mesh", "replay": "against the true motion its choices drive"}
         rows.append(("error estimate", "—" if self.error_estimate is None else

@@ -77,6 +77,16 @@ def test_the_control_bound_holds_and_binds_where_pontryagin_says():
     assert np.all(u[before] >= 1.5 - 1e-6) and np.all(u[after] < 1.5 - 1e-3)
 
 
+def test_the_result_says_where_a_bound_binds():
+    """result.binding and the summary's row: u ≤ 1.5 binds from the second point (the first's u is
+    not in Radau IIA's rule) to the switch 1/2, its pinned mesh point; u ≥ −1.5 never."""
+    result = qdframe.solve(load_model("least-effort-bounded"))
+    (name, runs), = result.binding.items()
+    assert name == "u ≤ 1.5" and len(runs) == 1
+    assert runs[0][0] == pytest.approx(result.t[1]) and runs[0][1] == pytest.approx(0.5, abs=1e-6)
+    assert "bounds binding           u ≤ 1.5 on [" in result.summary()
+
+
 def test_the_unbounded_least_effort_exceeds_the_bound():
     """The bound changes the answer: without it u(0) = 2 and J* = 2 < 37/18."""
     result = qdframe.solve(load_model("least-effort-block"))

@@ -209,9 +209,31 @@ def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveRes
         else "free"
     result.grids = GridsRecord(run.first_start, tuple(grids), tuple(per_grid), plan.signs, plan.selection_scale,
                                inputs, functional.grid.uniform)
+    result.binding = _binding(functional, result, options.residual_tol)
     spent = ", ".join(f"{count} nodes {used}" for count, used in zip(grids, per_grid))
     if result.status == Status.MAX_ITER:  # the whole budget, over all grids
         result.reason = f"{options.max_iter} iterations spent" + (f": {spent}" if len(grids) > 1 else "")
     elif result.status != Status.SOLVED and len(grids) > 1:
         result.remarks.append(f"{result.iterations} iterations: {spent}")
     return result
+
+
+def _binding(functional: Functional, result: SolveResult, residual_tol: float) -> dict[str, list[list[float]]]:
+    """Where each bound side (``state_bounds``, ``control_bounds``) binds: {"u ≤ 1.5": [[t_a, t_b], …]},
+    the first and last point of each run of points within the bounds check's tolerance of it."""
+    bounds = functional.bounds
+    if bounds is None:
+        return {}
+    y = functional.arguments(functional.pack(np.asarray(result.x, float), np.asarray(result.z, float),
+                                             None if result.u is None else np.asarray(result.u, float),
+                                             None if result.selections is None else np.asarray(result.selections, float)))
+    sides = functional.values.bound_sides(y)
+    tol = result.checks.get("bounds", {}).get("tol", residual_tol)
+    t = np.asarray(result.t, float) * functional.model.time_scale(np.asarray(result.x, float))
+    out: dict[str, list[list[float]]] = {}
+    for j, name in enumerate(bounds.names):
+        active = np.concatenate([[False], sides[:, j] >= -tol, [False]])
+        starts, ends = np.flatnonzero(~active[:-1] & active[1:]), np.flatnonzero(active[:-1] & ~active[1:]) - 1
+        if starts.size:
+            out[name] = [[float(t[a]), float(t[b])] for a, b in zip(starts, ends)]
+    return out
