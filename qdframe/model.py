@@ -48,10 +48,6 @@ MinValues = Callable[[np.ndarray, np.ndarray], np.ndarray]
 ScalarPieces = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
-# optimal-control hooks a user may write and qdframe does not read yet: a model that has one is
-# refused by name (it would be solved as if the hook were not there)
-NOT_YET: dict[str, str] = {}
-
 
 @dataclass(frozen=True)
 class MaxGroup:
@@ -209,8 +205,6 @@ class Cost:
     hessian: Callable[[np.ndarray], np.ndarray] | None = None
     # optional: a terminal (Mayer) cost M(x(T)): x (n,) -> (value, gradient (n,), Hessian (n, n))
     terminal: Callable[[np.ndarray], tuple[float, np.ndarray, np.ndarray]] | None = None
-    # the augmented Lagrangian's shifts (qdframe.functional.shifts.Shifts), set by qdframe.solve.optimum
-    shifts: object = None
 
 
 @dataclass(frozen=True)
@@ -287,11 +281,6 @@ class InclusionModel(ABC):
         n = len(self.state_names)
         if n == 0:
             raise InputError(f"{type(self).__name__}.state_names", "a non-empty tuple of names")
-        for name, what in NOT_YET.items():  # a hook that would be silently ignored: refused by name
-            if hasattr(type(self), name):
-                raise InputError(f"{type(self).__name__}.{name}", f"no {name}: qdframe does not solve {what} yet, "
-                                 "and would ignore it (a cost is `running_cost`; a bounded input is a set, "
-                                 "Interval(lo, hi))")
         self.T = _positive_float("T", self.default_T if T is None else T)
         if free_T is not None:
             if not isinstance(free_T, (bool, np.bool_)):

@@ -302,7 +302,7 @@ class Unknowns(InclusionModel):
                 g[: self.n], H[: self.n, : self.n] = grad, hess
                 return value, g, H
         return Cost(tuple(self._scaled(g) for g in cost.max_groups), tuple(self._scaled(g) for g in cost.min_groups),
-                    cost.weight, hessian=hessian, terminal=terminal, shifts=cost.shifts)
+                    cost.weight, hessian=hessian, terminal=terminal)
 
     # -- starting guesses and the way back
     def initial_guess(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -69,7 +69,7 @@ def violation(residuals: Shifts) -> float:
 def gap(functional: Functional, residuals: Shifts) -> float:
     """|yᵀr| at the functional's λ and shifts: the multipliers y = λ·w·(r + s) (resp.
     λ·w·max(0, ℓ + s)) against the residuals; without shifts 2λ·I, the penalty's gap."""
-    s = functional.shifts if functional.shifts is not None else zeros(residuals)
+    s = functional.shifts if functional.shifts is not None else residuals.cleared()
     w = functional.grid.weights
     sides = residuals.blocks + s.blocks
     shifted = np.where(s.point[None, :, None], sides, np.maximum(sides, 0.0))
@@ -82,25 +82,11 @@ def gap(functional: Functional, residuals: Shifts) -> float:
     return abs(functional.penalty * total)
 
 
-def zeros(residuals: Shifts) -> Shifts:
-    """Shifts of 0 in the shape of `residuals`."""
-    return dataclasses.replace(residuals, **{name: np.zeros_like(getattr(residuals, name)) for name in
-                                             ("consistency", "end", "surface", "blocks", "selections", "bounds")})
-
-
 def iterate(functional: Functional, result: SolveResult) -> np.ndarray:
     """ξ of a descent's result on its functional."""
     u = None if result.u is None else np.asarray(result.u, float)
     selections = None if result.selections is None else np.asarray(result.selections, float)
     return functional.pack(np.asarray(result.x, float), np.asarray(result.z, float), u, selections)
-
-
-def settled(functional: Functional, result: SolveResult) -> bool:
-    """Solved, with the multipliers' gap within GAP_TOL·max(1, |𝒥|)."""
-    if result.status != Status.SOLVED:
-        return False
-    return gap(functional, functional.constraint_residuals(iterate(functional, result))) <= \
-        GAP_TOL * max(1.0, abs(result.cost or 0.0))
 
 
 def optimum(functional: Functional, solver: DirectionSolver, options: DescentOptions,
@@ -204,8 +190,8 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
             # no step at all: the shifts' pull on a kink of a residual at its root (a selection at
             # an end of Sgn where its switch is 0) is a wall to the descent; a higher λ shrinks it
             weight = min(weight * RAISE_BY ** (2 if stuck else 1), PENALTY_CAP)
-        base = functional.shifts if functional.shifts is not None else zeros(residuals)
-        moved = base.moved(residuals) if warm else zeros(residuals)
+        base = functional.shifts if functional.shifts is not None else residuals.cleared()
+        moved = base.moved(residuals) if warm else residuals.cleared()
         functional.set_multipliers(moved.scaled(functional.penalty / weight), weight)
         earlier = result
         result = once(xi if warm else start, budget - used, True, False)
@@ -232,7 +218,7 @@ def costates(functional: Functional, xi: np.ndarray) -> np.ndarray | None:
     if any(block.size != 1 for block in blocks) or len(blocks) != functional.n:
         return None
     residuals = functional.constraint_residuals(xi)
-    s = functional.shifts if functional.shifts is not None else zeros(residuals)
+    s = functional.shifts if functional.shifts is not None else residuals.cleared()
     sides = residuals.blocks + s.blocks
     out = np.zeros((xi.shape[0], functional.n))
     for b, block in enumerate(blocks):

@@ -111,13 +111,12 @@ class Functional(Layout):
             probe = np.concatenate([np.nan_to_num(model.x0), np.zeros(self.m)])[None, :]
             held = held if held.pairs.size and held.coords(probe) else None
         self.held = held
-        shifts = cost.shifts.at(grid.t) if cost is not None and cost.shifts is not None else None
         self.values = Values(
             layout=self, grid=grid, pieces=self.pieces, surface=surface, cost=cost,
             penalty=float(cost.weight) if cost is not None else 1.0,
             end=np.asarray(model.end_indices, dtype=int), periodic=np.asarray(model.periodic, dtype=int),
             end_values=model.end_values, selection_scale=float(selection_scale), held=self.held,
-            shifts=shifts, bounds=_bounds(model))
+            bounds=_bounds(model))
         self.assembly = Quasidifferentials(layout=self, grid=grid, pieces=self.pieces, values=self.values)
         self.jacobians = Jacobians(layout=self, pieces=self.pieces, cost=cost)
 

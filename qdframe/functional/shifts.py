@@ -73,10 +73,10 @@ class Shifts:
         return replace(self, **{f.name: getattr(self, f.name) * factor for f in fields(self)
                                 if f.name not in ("t", "point")})
 
-    def largest(self) -> float:
-        """max |s| over every residual (the multipliers' size over λ)."""
-        return max((float(np.max(np.abs(getattr(self, f.name))))
-                    for f in fields(self) if f.name not in ("t", "point") and getattr(self, f.name).size), default=0.0)
+    def cleared(self) -> "Shifts":
+        """Shifts of 0 in this one's shape (no multipliers: the plain penalty)."""
+        return replace(self, **{f.name: np.zeros_like(getattr(self, f.name)) for f in fields(self)
+                                if f.name not in ("t", "point")})
 
 
 def equation_part(r: np.ndarray, s: np.ndarray) -> np.ndarray:

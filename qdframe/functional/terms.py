@@ -15,7 +15,7 @@ I = φ + χ + ω + υ + σ; the objective is ∫cost + λ·I with a cost (Exampl
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -368,9 +368,7 @@ def _shifted_terms(self: Values, xi: np.ndarray) -> Terms:
     x, z = self.layout.split(xi)
     y, lam = self.layout.arguments(xi), self.layout.selections(xi)
     shifts, r = self.shifts, self.constraint_residuals(x, y, z, lam)
-    plain = replace(shifts, **{name: np.zeros_like(getattr(shifts, name)) for name in
-                               ("consistency", "end", "surface", "blocks", "selections", "bounds")})
-    phi, omega, sigma = shifted_sums(r, plain, self.integral)  # no shift: ½r², ½max(0, ℓ)²
+    phi, omega, sigma = shifted_sums(r, shifts.cleared(), self.integral)  # no shift: ½r², ½max(0, ℓ)²
     chi, upsilon = 0.5 * float(np.sum(r.end**2)), 0.5 * self.integral(np.sum(r.consistency**2, axis=1))
     cost = self.cost_value(x, y) if self.cost is not None else 0.0
     eta = self.held.eta(xi) if self.held is not None else 0.0

@@ -44,7 +44,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..certificates.estimates import observed_difference
-from ..functional.shifts import Shifts
 from ..model import InclusionModel
 from .start import straight_guess
 from ..status import Status
@@ -72,14 +71,12 @@ class Round:
         self.iterations = self.result.history[-1].iteration if self.result.history else 0
 
 
-def penalized(model: InclusionModel, weight: float, previous: SolveResult | None,
-              shifts: Shifts | None = None) -> InclusionModel:
-    """A copy of `model` whose cost has the penalty `weight` (and the augmented Lagrangian's
-    `shifts`) and whose start is the trajectory of `previous` (x, z and the controls,
-    interpolated in t), if given."""
+def penalized(model: InclusionModel, weight: float, previous: SolveResult | None) -> InclusionModel:
+    """A copy of `model` whose cost has the penalty `weight` and whose start is the trajectory
+    of `previous` (x, z and the controls, interpolated in t), if given."""
     out = copy.copy(model)
     cost = model.cost()
-    out.cost = lambda: dataclasses.replace(cost, weight=float(weight), shifts=shifts)  # type: ignore[method-assign]
+    out.cost = lambda: dataclasses.replace(cost, weight=float(weight))  # type: ignore[method-assign]
     if previous is None and len(model.end_indices):  # a fresh start: the straight line between the given ends
         out.initial_guess = lambda times: straight_guess(model, times)  # type: ignore[method-assign]
     if previous is not None:
