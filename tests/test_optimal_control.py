@@ -79,11 +79,15 @@ def test_the_control_bound_holds_and_binds_where_pontryagin_says():
 
 def test_the_result_says_where_a_bound_binds():
     """result.binding and the summary's row: u ≤ 1.5 binds from the second point (the first's u is
-    not in Radau IIA's rule) to the switch 1/2, its pinned mesh point; u ≥ −1.5 never."""
+    not in Radau IIA's rule) to the last point before the switch 1/2 (the pinned point on it falls
+    on either side, within rounding: 0.5000000034 here, 0.5000000050 just off the bound without
+    AVX-512); u ≥ −1.5 never."""
     result = qdframe.solve(load_model("least-effort-bounded"))
     (name, runs), = result.binding.items()
     assert name == "u ≤ 1.5" and len(runs) == 1
-    assert runs[0][0] == pytest.approx(result.t[1]) and runs[0][1] == pytest.approx(0.5, abs=1e-6)
+    start, end = runs[0]
+    after = result.t[np.searchsorted(result.t, end, side="right")]  # the first point past the run
+    assert start == pytest.approx(result.t[1]) and end <= 0.5 + 1e-6 < after + 2e-6
     assert "bounds binding           u ≤ 1.5 on [" in result.summary()
 
 
