@@ -20,6 +20,8 @@ from ..errors import InputError
 from ..registry import make_peer
 from .cases import SUITES
 
+OCP_SUITE = "ocp"  # `bench run --suite ocp`: qdframe.bench.ocp, judged on cost
+
 
 def add_bench_parser(commands, parser_class: type[argparse.ArgumentParser]) -> None:
     """Add `bench` and its subcommands to the subparsers `commands` of `qdframe`."""
@@ -113,12 +115,14 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
         "and report.md into --out, row by row (--resume continues an interrupted sweep). Every run's error is "
         "measured against the model's reference solution on the run's own time grid.",
     )
-    run.add_argument("--suite", choices=sorted(SUITES), default="quick",
+    run.add_argument("--suite", choices=sorted([*SUITES, OCP_SUITE]), default="quick",
                      help="quick (the tests run it, a minute or two): 5 models, gauss-newton to N = 161, accuracy= 1e-3 and the "
                      "default call (1e-6), "
                      "native to N = 41; standard: the paper's, plugin, friction, peer, T = 100 and users' friction models, "
                      "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
-                     "and line search")
+                     "and line search; ocp: the optimal-control problems, qdframe's default call and accuracy= 1e-3, "
+                     "1e-8, nosnoc (--peers) at 10, 20, 40 control stages, every run judged by the cost of its "
+                     "control replayed (report.md, results.csv)")
     run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")
     run.add_argument("--directions", type=names, metavar="NAME,..",
                      help="only these directions (default: the suite's); 'all': every installed direction and "
@@ -280,7 +284,42 @@ def _time_optimal(args: argparse.Namespace, argv: Sequence[str]) -> int:
     return 0  # a measurement: the table gives each run's status
 
 
+def _ocp(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """`bench run --suite ocp` (:mod:`.ocp`): the options of the other suites' sweeps do not apply."""
+    import time
+
+    from . import ocp
+    from .ocp_problems import PROBLEMS
+
+    for option in ("directions", "line_searches", "nodes", "bvp_tols", "scheduler", "workers", "max_iter",
+                   "time_limit"):
+        if getattr(args, option) is not None:
+            raise InputError("--" + option.replace("_", "-"), "not given with --suite ocp (its runs are fixed: "
+                             "docs/benchmarks.md)", getattr(args, option))
+    if args.executor != "local" or args.resume:
+        raise InputError("--executor" if args.executor != "local" else "--resume", "not given with --suite ocp",
+                         args.executor if args.executor != "local" else True)
+    unknown = [name for name in args.models or () if name not in PROBLEMS]
+    if unknown:
+        raise InputError("--models", f"some of {', '.join(PROBLEMS)} with --suite ocp", ",".join(unknown))
+    try:  # fail before the runs, not after
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        raise InputError("--out", "a folder that can be made and written", args.out) from None
+    writable("--out", str(Path(args.out) / "report.md"))
+    start = time.perf_counter()
+    rows = ocp.run(args.models, ocp.ACCURACY if args.accuracy is None else args.accuracy, peers=args.peers,
+                   progress=_say(args.quiet))
+    paths = ocp.write_report(rows, args.out, shlex.join(["qdframe", *argv]), time.perf_counter() - start)
+    if not args.quiet:
+        print(ocp.work_precision(rows) + "\n\n" + ocp.table(rows))
+        print(f"\n{paths['report']}, {paths['results']}")
+    return 0  # a measurement: the tables give each run's status and cost
+
+
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    if args.suite == OCP_SUITE:
+        return _ocp(args, argv)
     from .references import cross_check
     from .report import ranking, ratio_table, time_table, write_report
     from .cases import plan
