@@ -78,6 +78,9 @@ NOT_RUN = {
     # counts, each in its own process: 25 minutes on the 2-core machine (2026-11-28); the docs'
     # small variant runs here
     "qdframe bench certificates": "a 25-minute measurement",
+    # the optimal-control suite, four problems by qdframe and nosnoc: 67 s on the idle 2-core machine
+    # (2026-11-28, docs/bench/ocp); the docs' lq-terminal variant runs here, tests/bench/test_ocp_bench.py its code
+    "qdframe bench run --suite ocp --peers --out docs/bench/ocp": "a 1-minute measurement",
     "qdframe bench certificates --blocks 2,5,10,20,40 --out docs/bench/certificates": "a 25-minute measurement, "
                                                                                       "into the docs",
     # the same without the estimate: 3 iterations from 7.3's motion under u ≡ 0, 17.5 s
@@ -592,6 +595,15 @@ def _time_optimal_small(out: Outcome) -> None:
     assert (out.cwd / "time-optimal-small" / "report.md").is_file()
 
 
+def _ocp_small(out: Outcome) -> None:
+    """docs/benchmarks.md: on lq-terminal qdframe's default call reaches a cost within 1e-6 of J*;
+    nosnoc's stagewise-constant control reaches 1e-2 and not 1e-4; the report is written."""
+    rows = {row["solver"]: row for row in _table(out.stdout.split("\n\n")[0])}
+    assert rows["qdframe"]["J*"] == "36.95652174" and rows["qdframe"]["time to ε = 1e-06 (s)"] != "—", rows
+    assert rows["nosnoc"]["time to ε = 0.01 (s)"] != "—" and rows["nosnoc"]["time to ε = 0.0001 (s)"] == "—", rows
+    assert (out.cwd / "ocp-small" / "report.md").is_file() and (out.cwd / "ocp-small" / "results.csv").is_file()
+
+
 OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe solve paper-7.1 --nodes 101 --plot docs/figures/paper-7.1.png": _solved,
     "qdframe solve block-stop-stick": _solved,
@@ -623,6 +635,7 @@ OUTCOMES: dict[str, Callable[[Outcome], None]] = {
     "qdframe bench hard": _hard_cases,
     "qdframe bench time-optimal --accuracy none --formulations global --stages 4 --elements 4 "
     "--out time-optimal-small": _time_optimal_small,
+    "qdframe bench run --suite ocp --models lq-terminal --accuracy none --peers --out ocp-small": _ocp_small,
     "qdframe bench friction --schemes radau-iia,trapezoid --nodes 101,1001": _friction_schemes,
     "python examples/custom_model.py": _solved_summary,
     "python examples/accuracy.py": _accuracy_table,

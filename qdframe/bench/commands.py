@@ -121,7 +121,7 @@ def _add_run_parser(bench_subparsers) -> argparse.ArgumentParser:
                      "native to N = 41; standard: the paper's, plugin, friction, peer, T = 100 and users' friction models, "
                      "gauss-newton to N = 100001 and accuracy= to 1e-8; full: standard with every direction "
                      "and line search; ocp: the optimal-control problems, qdframe's default call and accuracy= 1e-3, "
-                     "1e-8, nosnoc (--peers) at 10, 20, 40 control stages, every run judged by the cost of its "
+                     "1e-8, nosnoc (--peers) at 10, 20, 30, 40 control stages, every run judged by the cost of its "
                      "control replayed (report.md, results.csv)")
     run.add_argument("--models", type=names, metavar="NAME,..", help="only these models (default: the suite's)")
     run.add_argument("--directions", type=names, metavar="NAME,..",
@@ -170,11 +170,12 @@ def _pages(args: argparse.Namespace) -> int:
 
     root = Path(args.root)
     missing = [str(root / p) for p in PAGES if not (root / p).is_file()]
-    missing += [str(root / "docs" / "bench" / s / "results.csv") for s in REPORTS
+    folders = (*REPORTS, "certificates", "ocp")
+    missing += [str(root / "docs" / "bench" / s / "results.csv") for s in folders
                 if not (root / "docs" / "bench" / s / "results.csv").is_file()]
     if missing:
         raise InputError("--root", "a qdframe checkout with README.md, docs/benchmark-results.md and "
-                                   "docs/bench/{quick,standard,directions}/results.csv", f"{root} (missing {missing[0]})")
+                                   f"docs/bench/{{{','.join(folders)}}}/results.csv", f"{root} (missing {missing[0]})")
     changed = update(root, check=args.check)
     for path in changed:
         print(f"{path}: {'differs from its reports' if args.check else 'rewritten'}")

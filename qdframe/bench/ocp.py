@@ -38,7 +38,7 @@ from .ocp_problems import PROBLEMS, OcpProblem
 from .ocp_replay import replay
 
 ACCURACY = (1e-3, 1e-8)  # qdframe's accuracy= runs, beside the default call (1e-6)
-STAGES = (10, 20, 40)  # nosnoc's control stages …
+STAGES = (10, 20, 30, 40)  # nosnoc's control stages (30: its motor example's) …
 ELEMENTS = 2  # … of this many finite elements each
 EPSILONS = (1e-2, 1e-4, 1e-6)  # the work-precision summary's ε
 MET = 1e-6  # a run whose violation is within this (relative, as ε) met the conditions: it can set the best known J*
@@ -84,6 +84,7 @@ def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_co
         lo, hi = problem.u_bounds
         excess = float(np.max(np.maximum(samples - hi, lo - samples), initial=0.0))
     cost_error = abs(motion.cost - problem.best) if problem.best is not None else float("nan")
+    message = f"{message}; replayed x(T) = ({', '.join(f'{value:.6g}' for value in motion.x_end)})"
     return Row(problem.name, solver, setting, Status(status).value, float(motion.cost), float(own_cost),
                float(cost_error), float(max(miss, excess, 0.0)), float(wall), int(points), message)
 

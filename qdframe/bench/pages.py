@@ -18,7 +18,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from . import certificate_cost
+from . import certificate_cost, ocp
 from .report import ranking, ratio_table, solver_times
 from .storage import read_csv
 
@@ -31,6 +31,7 @@ BLOCKS: dict[str, tuple[str, Callable[[list[dict]], str]]] = {
     "directions times": ("directions", solver_times),
     "certificate costs": ("certificates", lambda rows: certificate_cost.summary(rows) + "\n\n"
                           + certificate_cost.table(rows)),
+    "ocp work precision": ("ocp", ocp.work_precision),
 }
 MARK = re.compile(r"(<!-- generated: (?P<name>[a-z ]+) -->\n)(?P<body>.*?)(\n<!-- end generated -->)", re.S)
 
@@ -53,6 +54,7 @@ def update(root: str | Path = ".", check: bool = False) -> list[Path]:
     root = Path(root)
     rows = {suite: read_csv(root / "docs" / "bench" / suite / "results.csv") for suite in SUITES}
     rows["certificates"] = certificate_cost.read(root / "docs" / "bench" / "certificates" / "results.csv")
+    rows["ocp"] = ocp.read_rows(root / "docs" / "bench" / "ocp" / "results.csv")
     changed = []
     for name in PAGES:
         path = root / name
