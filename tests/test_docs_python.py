@@ -162,6 +162,15 @@ def docking(ns, out):
     assert [round(float(t), 4) for t in docked.switch_times] == [0.0, 0.1727]
 
 
+def periodic_stick_slip(ns, out):
+    # "solved 4093", "[0.2447 4.9322 9.6356 14.163]: slips and sticks on x1 = 0.2"; "in 1.2 s, an error
+    # estimate of 6.6e-7 by replay" (tests/sets/test_modes.py holds it to an independent integration)
+    cycle = ns["cycle"]
+    assert cycle.solved and cycle.certificate == "replay" and about(cycle.nodes, 4093)
+    assert [round(float(t), 4) for t in cycle.switch_times[:4]] == [0.2447, 4.9322, 9.6356, 14.163]
+    assert about(cycle.error_estimate, 6.6e-7)
+
+
 def hand_written_coefficient(ns, out):
     # "the same model by hand": the same μ = 2 (its bounds (0.5, 5) hold it)
     result = qdframe.solve(ns["HandWrittenCoefficient"]())
@@ -334,6 +343,7 @@ CHECKS: dict[tuple[str, str], Callable] = {
     ("docs/authoring.md", "class BlockToMark(SetModel):"): block_to_mark,
     ("docs/guide.md", "class LeastEffort(SetModel):"): guide_optimal_control,
     ("docs/authoring.md", "class Docking(SetModel):"): docking,
+    ("docs/authoring.md", "class PeriodicStickSlip(SetModel):"): periodic_stick_slip,
     ("docs/authoring.md", "class HandWrittenCoefficient(InclusionModel):"): hand_written_coefficient,
     ("docs/authoring.md", "class CoulombPendulum(SetModel):"): coulomb_pendulum,
     ("docs/authoring.md", "class Puck(SetModel):"): puck,

@@ -2,7 +2,7 @@
 
 Each problem of :mod:`.ocp_problems` is solved by qdframe (the default call, and with each
 ``accuracy=`` asked for) and by nosnoc (:mod:`.nosnoc_ocp`, for each number of control
-stages). Every run is judged by one yardstick (:mod:`.ocp_replay`): its own control,
+stages). Every run is judged by one yardstick (:mod:`.two_modes`): its own control,
 replayed through the true Filippov dynamics from x(0), gives the cost J that control
 achieves and how far its motion misses the end conditions and its control the bounds
 (`violation`). A run's own cost (its discrete problem's) is shown beside it.
@@ -35,7 +35,7 @@ from ..status import Status
 from . import nosnoc_ocp
 from .nosnoc_peer import nosnoc_available
 from .ocp_problems import PROBLEMS, OcpProblem
-from .ocp_replay import replay
+from .two_modes import contact, integrate
 
 ACCURACY = (1e-3, 1e-8)  # qdframe's accuracy= runs, beside the default call (1e-6)
 STAGES = (10, 20, 30, 40)  # nosnoc's control stages (30: its motor example's) …
@@ -69,12 +69,9 @@ def scale(problem: OcpProblem) -> float:
 def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_cost: float, wall: float, points: int,
           control: Callable[[float], np.ndarray], breaks: Sequence[float], samples: np.ndarray, message: str) -> Row:
     """The row of a run whose control is `control` (its `breaks`, and its values at `samples`)."""
-    def field(x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        return problem.numeric_field(x, u)
-
     try:
-        motion = replay(field, lambda x, u: float(problem.running(x, u)), problem.terminal, problem.x0, problem.T,
-                        control, breaks, problem.friction)
+        motion = integrate(contact(problem.numeric_field, problem.friction), problem.x0, problem.T, control, breaks,
+                           lambda x, u: float(problem.running(x, u)), problem.terminal)
     except RuntimeError as exc:
         return Row(problem.name, solver, setting, Status(status).value, float("nan"), own_cost, float("nan"),
                    float("nan"), wall, points, f"{message}; {exc}")
@@ -228,7 +225,7 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
         f"Made by `{command}` in {seconds:.1f} s ({platform.python_implementation()} {platform.python_version()}, "
         f"{platform.machine()}, {os.cpu_count()} CPUs, load average {_load()} at the end).", "",
         "Every run's control is replayed through the true Filippov dynamics from x(0) "
-        "(`qdframe/bench/ocp_replay.py`, an event-driven integration independent of qdframe's own): "
+        "(`qdframe/bench/two_modes.py`, an event-driven integration independent of qdframe's own): "
         "the replayed cost J, its distance to J*, and the violation (the replayed motion's end miss "
         "and the control's bound excess). J*: " + "; ".join(
             f"{name} {PROBLEMS[name].source}" for name in dict.fromkeys(row.model for row in rows)) + ".", "",

@@ -6,7 +6,7 @@ An :class:`OcpProblem` is an optimal-control problem with at most one Coulomb co
     x_i(T) = xT_i (i in `end`),   lo ≤ u ≤ hi,
 
 g, c and M written with arithmetic alone, so that one formula serves NumPy (the replay that
-judges every run, :mod:`.ocp_replay`) and CasADi (nosnoc's statement, :mod:`.nosnoc_ocp`);
+judges every run, :mod:`.two_modes`) and CasADi (nosnoc's statement, :mod:`.nosnoc_ocp`);
 qdframe states it as its model (`model`). J* is exact where known (`best`), else the least
 cost of the runs that met the conditions (the report says which).
 

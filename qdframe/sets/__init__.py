@@ -3,7 +3,8 @@
 An author writes the sets F_b(x) of x' ∈ F(x) with SymPy formulas in the states and
 controls — points, intervals, hulls (unions), intersections, Minkowski sums, scalings,
 Filippov sign terms a·Sgn(s) and the vector sign Sgn(v1, v2) of isotropic friction (v/|v|, the
-unit ball at v = 0), balls and ellipses — and never a derivative::
+unit ball at v = 0), balls and ellipses, a switched field's modes as nosnoc states them
+(:func:`Modes`) — and never a derivative::
 
     from qdframe.sets import SetModel, Interval, intersection, Abs
 
@@ -35,6 +36,7 @@ and what is allowed where it stands. Pieces must be continuously differentiable 
 of {e, −e}) and in costs and sign amplitudes, where it is the group max{e, −e}.
 
 Modules: :mod:`~qdframe.sets.expressions` (formulas: checks, ψ, support formulas),
+:mod:`~qdframe.sets.modes` (Stewart's modes and switching functions to sign terms),
 :mod:`~qdframe.sets.algebra` (:class:`Set`, its normal form, :class:`Point`, and the
 combinators its operators build: sum, hull, intersection, scaling),
 :mod:`~qdframe.sets.primitives` (Interval, Box, Ball, Ellipse, Sgn and its vector form),
@@ -48,6 +50,7 @@ from sympy import Abs, Max, Min, sqrt  # re-exported for model authors
 from .algebra import Hull, Intersection, Point, Scaled, Set, Sum, as_set, hull, intersection, minkowski_sum, union
 from .compiler import Compiled, compile_sets
 from .expressions import SetStructureError, norm1
+from .modes import Modes
 from .primitives import Ball, Box, Ellipse, Interval, Sgn, VectorSgn
 from .set_model import SetModel, define_model
 
@@ -59,6 +62,7 @@ __all__ = [
     "Interval",
     "Max",
     "Min",
+    "Modes",
     "Point",
     "Set",
     "SetModel",

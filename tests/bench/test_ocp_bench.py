@@ -10,15 +10,15 @@ import pytest
 from qdframe.bench import nosnoc_ocp, ocp
 from qdframe.bench.nosnoc_peer import nosnoc_available
 from qdframe.bench.ocp_problems import PROBLEMS
-from qdframe.bench.ocp_replay import replay
+from qdframe.bench.two_modes import contact, integrate
 from qdframe.cli import main
 from qdframe.models import optimal_references as references
 from qdframe.status import Status
 
 
-def _replayed(problem, control, breaks=(), friction="problem"):
-    return replay(problem.numeric_field, lambda x, u: float(problem.running(x, u)), problem.terminal, problem.x0,
-                  problem.T, control, breaks, problem.friction if friction == "problem" else friction)
+def _replayed(problem, control, breaks=()):
+    return integrate(contact(problem.numeric_field, problem.friction), problem.x0, problem.T, control, breaks,
+                     lambda x, u: float(problem.running(x, u)), problem.terminal)
 
 
 @pytest.mark.parametrize("name, reference", [
