@@ -32,7 +32,7 @@ def test_a_hand_edited_figure_is_found_and_rewritten(tmp_path):
     for page in ("README.md", "docs/benchmark-results.md"):
         (tmp_path / page).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / page).write_text((ROOT / page).read_text())
-    for suite in ("quick", "standard", "directions", "certificates"):
+    for suite in ("quick", "standard", "directions", "certificates", "ocp"):
         (tmp_path / "docs" / "bench" / suite).mkdir(parents=True)
         (tmp_path / "docs" / "bench" / suite / "results.csv").write_text(
             (ROOT / "docs" / "bench" / suite / "results.csv").read_text())
@@ -45,7 +45,7 @@ def test_a_hand_edited_figure_is_found_and_rewritten(tmp_path):
     assert readme.read_text() == (ROOT / "README.md").read_text()
 
 
-@pytest.mark.parametrize("suite", ["quick", "standard", "directions", "certificates"])
+@pytest.mark.parametrize("suite", ["quick", "standard", "directions", "certificates", "ocp"])
 def test_each_report_names_the_commit_that_made_it(suite):
     header = (ROOT / "docs" / "bench" / suite / "report.md").read_text()
     assert re.search(r"\| qdframe \| [^,]+, commit [0-9a-f]{7,}", header), f"docs/bench/{suite}/report.md"

@@ -34,6 +34,7 @@ from ..schemes.grid import make_scheme
 from ..status import Status
 from . import nosnoc_ocp
 from .nosnoc_peer import nosnoc_available
+from .peer import package_version
 from .ocp_problems import PROBLEMS, OcpProblem
 from .two_modes import contact, integrate
 
@@ -223,7 +224,9 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
     lines = [
         "# Optimal control with friction: qdframe against nosnoc, on cost", "",
         f"Made by `{command}` in {seconds:.1f} s ({platform.python_implementation()} {platform.python_version()}, "
-        f"{platform.machine()}, {os.cpu_count()} CPUs, load average {_load()} at the end).", "",
+        f"{platform.machine()}, {os.cpu_count()} CPUs, load average {_load()} at the end; nosnoc "
+        f"{package_version('nosnoc')}).", "",
+        f"| qdframe | {_version()} |", "|---|---|", "",
         "Every run's control is replayed through the true Filippov dynamics from x(0) "
         "(`qdframe/bench/two_modes.py`, an event-driven integration independent of qdframe's own): "
         "the replayed cost J, its distance to J*, and the violation (the replayed motion's end miss "
@@ -238,6 +241,14 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
     ]
     lines += [f"- {row.model}, {row.solver}, {row.setting}: {row.message}" for row in rows]
     return "\n".join(lines) + "\n"
+
+
+def _version() -> str:
+    """qdframe's version and the commit of its source (as the other reports name it)."""
+    from .. import __version__
+    from .storage import source_commit
+
+    return f"{__version__}, commit {source_commit() or 'unknown'}"
 
 
 def _load() -> str:
