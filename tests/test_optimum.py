@@ -184,8 +184,12 @@ _STALLS = ("the penalty rounds end away from T* (λ up to 3.5e9, issue 53), on b
     pytest.param(2.0, 1.5, marks=pytest.mark.xfail(strict=True, reason=_STALLS + "max_iter at T = 9.88 (failed at 4.29 "
                                                                                   "without AVX-512); T* = 3.0984")),
     pytest.param(5.0, 1.5, marks=pytest.mark.xfail(strict=True, reason=_STALLS + "stationary at T = 1.93; T* = 4.8990")),
-    pytest.param(5.0, 2.0, marks=pytest.mark.xfail(strict=True, reason=_STALLS + "stationary at T = 5.09 (1.83 without "
-                                                                                  "AVX-512); T* = 3.6515")),
+    # solved on the 2-core AVX-512 machine since armijo stops where a decrease is below the objective's
+    # rounding; stationary at T = 4.56 with OpenBLAS's Haswell kernels alone and at 1.83 with NumPy's
+    # AVX-512 off alone: where the penalty path ends depends on rounding (issue 56), so not strict
+    pytest.param(5.0, 2.0, marks=pytest.mark.xfail(strict=False, reason="the penalty path's end depends on rounding: "
+                                                                        "solved here, stationary at T = 4.56 or 1.83 on "
+                                                                        "other kernels; T* = 3.6515")),
 ])
 def test_the_fastest_move_from_a_guess_of_4(distance, force):
     """The default call finds T* to the default target (README, "Known failures", for the three that do not)."""

@@ -1,5 +1,6 @@
 """The line searches (paper (180)) on functions whose minimizer is known."""
 
+import numpy as np
 import pytest
 
 from qdframe.line_searches.armijo import Armijo
@@ -30,3 +31,33 @@ def test_golden_reports_no_decrease_as_zero():
 def test_armijo_accepts_sufficient_decrease():
     gamma, value = Armijo().search(lambda g: (g - 0.3) ** 2, 0.09, -0.6, 1.0)
     assert 0 < gamma <= 1.0 and value <= 0.09 + 1e-4 * gamma * -0.6
+
+
+def test_armijo_stops_where_the_decrease_it_asks_for_is_below_the_objectives_rounding():
+    """A stalled search (every trial above the value: a kink, or rounding) used to evaluate the
+    objective 60 times; it stops once γ·|slope| < 4ε·|value|, at the first γ = 2^-j below it."""
+    calls = []
+
+    def along(gamma: float) -> float:
+        calls.append(gamma)
+        return 2.0 + gamma  # no decrease anywhere
+    assert Armijo().search(along, 2.0, -1e-6, 1.0) == (0.0, 2.0)
+    smallest = calls[-1]
+    assert smallest * 1e-6 >= 4 * np.finfo(float).eps * 2.0 > smallest * 0.5 * 1e-6
+    assert len(calls) < 60
+
+
+def test_armijo_still_finds_a_decrease_the_rounding_floor_leaves_visible():
+    """The floor only cuts trials whose whole first-order decrease is below the rounding: a
+    decrease at γ = 2^-20 along a slope of −1 is found as before."""
+    def along(gamma: float) -> float:
+        return 1.0 - gamma if gamma <= 2.0**-20 else 1.0 + gamma
+    assert Armijo().search(along, 1.0, -1.0, 1.0) == (2.0**-20, 1.0 - 2.0**-20)
+
+
+def test_armijo_without_a_descent_slope_keeps_halving_for_any_decrease():
+    """slope ≥ 0 (a nonsmooth model's derivative): no floor, any decrease is taken."""
+    def along(gamma: float) -> float:
+        return 1.0 - 1e-3 if gamma <= 2.0**-30 else 1.5
+    gamma, value = Armijo().search(along, 1.0, 0.0, 1.0)
+    assert gamma == 2.0**-30 and value == 1.0 - 1e-3
