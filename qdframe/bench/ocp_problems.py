@@ -95,12 +95,12 @@ class NosnocMotor(SetModel):
 
 
 PROBLEMS: dict[str, OcpProblem] = {problem.name: problem for problem in (
-    OcpProblem("least-effort-block", LeastEffortBlock, _block, _effort, (0.0, 0.0), 2.0, {0: 1.0, 1: 0.0},
+    OcpProblem(LeastEffortBlock.name, LeastEffortBlock, _block, _effort, (0.0, 0.0), 2.0, {0: 1.0, 1: 0.0},
                friction=(1, LeastEffortBlock.friction), best=LeastEffortBlock.exact_cost, source="exact"),
-    OcpProblem("least-effort-bounded", LeastEffortBounded, _block, _effort, (0.0, 0.0), 2.0, {0: 1.0, 1: 0.0},
+    OcpProblem(LeastEffortBounded.name, LeastEffortBounded, _block, _effort, (0.0, 0.0), 2.0, {0: 1.0, 1: 0.0},
                friction=(1, LeastEffortBounded.friction), u_bounds=(-1.5, 1.5), best=LeastEffortBounded.exact_cost,
                source="exact"),
-    OcpProblem("lq-terminal", LQTerminal, _block, _effort, (0.0, 0.0), 1.0,
+    OcpProblem(LQTerminal.name, LQTerminal, _block, _effort, (0.0, 0.0), 1.0,
                terminal=lambda x: 50 * ((x[0] - 2) ** 2 + x[1] ** 2), best=LQTerminal.exact_cost, source="exact"),
     OcpProblem("nosnoc-motor", NosnocMotor, _motor, _effort, NosnocMotor.default_x0, NosnocMotor.default_T,
                dict(enumerate(MOTOR_TARGET)), friction=(1, GUIDE_FRICTION / M1), u_bounds=(-5.0, 5.0),
