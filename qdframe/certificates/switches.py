@@ -1,7 +1,9 @@
 """Switch times of a trajectory: where a Filippov selection changes regime.
 
 A sign term a·Sgn(s) has two regimes along a solution: *off* the surface (s ≠ 0, λ =
-sign s) and *on* it (s = 0 with λ ∈ [−1, 1]: sticking, sliding). On a mesh the change
+sign s) and *on* it (s = 0 with λ ∈ [−1, 1]: sticking, sliding). A point with s = 0 and λ = ±1
+is the switch itself between two off stretches, unless s stays 0 for HELD points in a row: a
+block stuck exactly on the friction threshold (|force| = μ, λ = ±1 while it sticks) is on. On a mesh the change
 falls inside an interval and the scheme drops to first order there; a mesh point on the
 switch time restores its order (nosnoc's FESD gets the same by making the steps unknown).
 Each switch is located from the smooth side, by the polynomial (degree ≤ 2) through the
@@ -37,7 +39,8 @@ from ..functional import Functional
 
 SAME_TIME = 1e-9  # relative to T: two switching functions' switches this close are one time (they switch together)
 ON_SURFACE = 1e-6  # |s| ≤ this·max(1, max|s|): the point is on the surface (s = 0 up to the solve's residuals)
-SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime
+SATURATED = 1e-6  # |λ| ≥ 1 − this: λ is at an end of [−1, 1] (to the solve's residuals), the off side's regime …
+HELD = 3  # … unless s = 0 at this many points in a row: stuck on the threshold (|λ| = 1 all along)
 
 
 def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True, merge: bool = True,
@@ -147,7 +150,9 @@ def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> 
     interval [t_first, t_last] around them; the polynomials use only points outside it,
     where the scheme's solution is smooth."""
     small = np.abs(s) <= ON_SURFACE * max(1.0, float(np.max(np.abs(s))))
-    on = small & (np.abs(lam) < 1.0 - SATURATED)
+    # on the surface: s = 0 with λ inside (−1, 1), or s = 0 at HELD points in a row whatever λ (stuck
+    # exactly on the threshold, |force| = μ: λ = ±1 all along; a crossing or a reaching has one or two)
+    on = small & ((np.abs(lam) < 1.0 - SATURATED) | _in_runs(small, HELD))
     # 0 on the surface; ±1 off it, including a point with s = 0 and λ = ±1 (the switch point itself)
     side = np.where(on, 0, np.where(small, np.sign(lam), np.sign(s))).astype(int)
     # a crossing that falls on a point (a mesh point pinned there): s = 0 and λ inside (−1, 1)
@@ -179,6 +184,17 @@ def _locate(t: np.ndarray, mesh: np.ndarray, s: np.ndarray, lam: np.ndarray) -> 
             root = None
         if root is not None:
             out.append((root, before != 0 and after != 0 and before != after))
+    return out
+
+
+def _in_runs(mask: np.ndarray, length: int) -> np.ndarray:
+    """Where `mask` holds at `length` or more consecutive points."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros(mask.size, dtype=bool)
+    for a, b in zip(starts, ends):
+        if b - a >= length:
+            out[a:b] = True
     return out
 
 
