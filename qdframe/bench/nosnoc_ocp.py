@@ -1,10 +1,10 @@
 """nosnoc's statement of an :class:`~.ocp_problems.OcpProblem`, and one run of it.
 
 As nosnoc's own examples state an optimal-control problem (its motor with friction, its
-cart-pole): the control u with box bounds ``lbu``/``ubu``, the stage cost ``f_q`` = c(x, u),
-``f_terminal`` = M(x), the end values as the terminal equality constraint ``g_terminal``,
-and the contact in Stewart's form, one subsystem with the modes g − a·e_j (where c = x_j > 0)
-and g + a·e_j (x_j < 0). A smooth problem is one subsystem whose two modes are both g.
+cart-pole): the control u with box bounds ``lbu``/``ubu``, the state bounds ``lbx``/``ubx``,
+the stage cost ``f_q`` = c(x, u), ``f_terminal`` = M(x), the end values as the terminal
+equality constraint ``g_terminal``, and the contact in Stewart's form, one subsystem with the
+modes g − b(x) (where c = x_j > 0) and g + b(x) (x_j < 0), b = a·e_j for a force on x_j' alone. A smooth problem is one subsystem whose two modes are both g.
 `stages` control stages of `elements` finite elements each, u constant on a stage; Radau IIA
 with n_s = 2, FESD, complementarity tolerance 1e-9 (the settings of
 :func:`.nosnoc_peer.run_nosnoc`). The run's control is its stagewise u
@@ -46,16 +46,19 @@ def statement(problem: OcpProblem, ca, nosnoc) -> tuple[object, object]:
     u = ca.SX.sym("u", 1)
     g = ca.vertcat(*problem.field(x, u))
     if problem.friction is not None:
-        j, a = problem.friction
-        push = np.zeros(problem.n)
-        push[j] = a
-        modes, switch = ca.horzcat(g - push, g + push), x[j]
+        push = ca.vertcat(*problem.push(x))
+        modes, switch = ca.horzcat(g - push, g + push), x[problem.friction[0]]
     else:
         modes, switch = ca.horzcat(g, g), x[0]
     model = nosnoc.NosnocModel(x=x, F=[modes], c=[switch], S=[TWO_MODES], x0=np.array(problem.x0, dtype=float), u=u)
     extra = {}
     if problem.u_bounds is not None:
         extra.update(lbu=np.array([problem.u_bounds[0]]), ubu=np.array([problem.u_bounds[1]]))
+    if problem.x_bounds:
+        lbx, ubx = np.full(problem.n, -np.inf), np.full(problem.n, np.inf)
+        for i, (lo, hi) in problem.x_bounds.items():
+            lbx[i], ubx[i] = lo, hi
+        extra.update(lbx=lbx, ubx=ubx)
     if problem.end:
         index = sorted(problem.end)
         extra["g_terminal"] = ca.vertcat(*[x[i] - problem.end[i] for i in index])

@@ -4,8 +4,8 @@ Each problem of :mod:`.ocp_problems` is solved by qdframe (the default call, and
 ``accuracy=`` asked for) and by nosnoc (:mod:`.nosnoc_ocp`, for each number of control
 stages). Every run is judged by one yardstick (:mod:`.two_modes`): its own control,
 replayed through the true Filippov dynamics from x(0), gives the cost J that control
-achieves and how far its motion misses the end conditions and its control the bounds
-(`violation`). A run's own cost (its discrete problem's) is shown beside it.
+achieves and how far its motion misses the end conditions, its control the bounds and its
+motion the state bounds (`violation`). A run's own cost (its discrete problem's) is shown beside it.
 
 - qdframe's control is its scheme's own: on each mesh interval the polynomial through u at
   the interval's velocity points (:meth:`qdframe.schemes.base.Scheme.velocity`; linear
@@ -71,8 +71,9 @@ def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_co
           control: Callable[[float], np.ndarray], breaks: Sequence[float], samples: np.ndarray, message: str) -> Row:
     """The row of a run whose control is `control` (its `breaks`, and its values at `samples`)."""
     try:
-        motion = integrate(contact(problem.numeric_field, problem.friction), problem.x0, problem.T, control, breaks,
-                           lambda x, u: float(problem.running(x, u)), problem.terminal)
+        push = problem.push if problem.friction is not None and callable(problem.friction[1]) else None
+        motion = integrate(contact(problem.numeric_field, problem.friction, push), problem.x0, problem.T, control,
+                           breaks, lambda x, u: float(problem.running(x, u)), problem.terminal)
     except RuntimeError as exc:
         return Row(problem.name, solver, setting, Status(status).value, float("nan"), own_cost, float("nan"),
                    float("nan"), wall, points, f"{message}; {exc}")
@@ -81,6 +82,8 @@ def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_co
     if problem.u_bounds is not None:
         lo, hi = problem.u_bounds
         excess = float(np.max(np.maximum(samples - hi, lo - samples), initial=0.0))
+    for i, (lo, hi) in problem.x_bounds.items():  # along the replayed motion (at the integrator's steps)
+        excess = max(excess, float(np.max(np.maximum(motion.samples[:, i] - hi, lo - motion.samples[:, i]), initial=0.0)))
     cost_error = abs(motion.cost - problem.best) if problem.best is not None else float("nan")
     message = f"{message}; replayed x(T) = ({', '.join(f'{value:.6g}' for value in motion.x_end)})"
     return Row(problem.name, solver, setting, Status(status).value, float(motion.cost), float(own_cost),

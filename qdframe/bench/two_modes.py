@@ -166,17 +166,23 @@ def _events(system: TwoModes, control, mode: int) -> list:
     return [reach]
 
 
-def contact(field: Field, friction: tuple[int, float] | None) -> TwoModes:
-    """x' ∈ g(x, u) − a·e_j·Sgn(x_j): f± = g ∓ a·e_j on c = x_j (`friction` (j, a)); g alone without one."""
+def contact(field: Field, friction: tuple[int, object] | None, push: Callable[[np.ndarray], list] | None = None) -> TwoModes:
+    """x' ∈ g(x, u) − b(x)·Sgn(x_j): f± = g ∓ b on c = x_j (`friction` (j, a), b = a·e_j, or `push`
+    giving b(x)); g alone without one."""
     if friction is None:
         return TwoModes(field, field)
-    j, a = friction
+    j, amplitude = friction
 
-    def push(sign: float) -> Field:
+    def force(x: np.ndarray) -> np.ndarray:
+        if push is not None:
+            return np.asarray(push(x), dtype=float)
+        out = np.zeros(x.size)
+        out[j] = amplitude
+        return out
+
+    def mode(sign: float) -> Field:
         def f(x: np.ndarray, u: np.ndarray) -> np.ndarray:
-            velocity = np.array(field(x, u), dtype=float)
-            velocity[j] -= sign * a
-            return velocity
+            return np.array(field(x, u), dtype=float) - sign * force(x)
         return f
 
     def gradient(x: np.ndarray) -> np.ndarray:
@@ -184,4 +190,4 @@ def contact(field: Field, friction: tuple[int, float] | None) -> TwoModes:
         out[j] = 1.0
         return out
 
-    return TwoModes(push(1.0), push(-1.0), lambda x: float(x[j]), gradient)
+    return TwoModes(mode(1.0), mode(-1.0), lambda x: float(x[j]), gradient)
