@@ -78,7 +78,7 @@ NOT_RUN = {
     # counts, each in its own process: 25 minutes on the 2-core machine (2026-11-28); the docs'
     # small variant runs here
     "qdframe bench certificates": "a 25-minute measurement",
-    # the optimal-control suite, four problems by qdframe and nosnoc: 60 s on the idle 2-core machine
+    # the optimal-control suite, five problems by qdframe and nosnoc: 82 s on the idle 2-core machine
     # (2026-11-28, docs/bench/ocp); the docs' lq-terminal variant runs here, tests/bench/test_ocp_bench.py its code
     "qdframe bench run --suite ocp --peers --out docs/bench/ocp": "a 1-minute measurement",
     "qdframe bench certificates --blocks 2,5,10,20,40 --out docs/bench/certificates": "a 25-minute measurement, "
