@@ -1,11 +1,12 @@
-"""The problems of `qdframe bench ocp`, each stated once for every tool that runs it.
+"""The problems of `qdframe bench run --suite ocp`, each stated once for every tool that runs it.
 
 An :class:`OcpProblem` is an optimal-control problem with at most one Coulomb contact:
 
-    min ∫_0^T c(x, u) dt + M(x(T))   s.t.   x' ∈ g(x, u) − a·e_j·Sgn(x_j),   x(0) = x0,
-    x_i(T) = xT_i (i in `end`),   lo ≤ u ≤ hi,
+    min ∫_0^T c(x, u) dt + M(x(T))   s.t.   x' ∈ g(x, u) − b(x)·Sgn(x_j),   x(0) = x0,
+    x_i(T) = xT_i (i in `end`),   lo ≤ u ≤ hi,   lo_i ≤ x_i ≤ hi_i (i in `x_bounds`),
 
-g, c and M written with arithmetic alone, so that one formula serves NumPy (the replay that
+b = a·e_j for a force on x_j' alone (a friction on a velocity); g, b, c and M written with
+arithmetic (and :func:`_cos`, :func:`_sin`), so that one formula serves NumPy (the replay that
 judges every run, :mod:`.two_modes`) and CasADi (nosnoc's statement, :mod:`.nosnoc_ocp`);
 qdframe states it as its model (`model`). J* is exact where known (`best`), else the least
 cost of the runs that met the conditions (the report says which).

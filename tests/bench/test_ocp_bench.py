@@ -13,7 +13,6 @@ from qdframe.bench.ocp_problems import PROBLEMS
 from qdframe.bench.two_modes import contact, integrate
 from qdframe.cli import main
 from qdframe.models import optimal_references as references
-from qdframe.status import Status
 
 
 def _replayed(problem, control, breaks=()):
