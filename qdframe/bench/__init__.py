@@ -17,6 +17,10 @@ judge by.
   times to an error, report.md), :mod:`.sign_forms` (each friction and sliding model
   written once for the peers), the peer interface :mod:`.peer` and its registered peers
   :mod:`.nosnoc_peer` and :mod:`.solve_bvp_peer` (scipy's solve_bvp);
+* `bench run --suite ocp`, optimal control judged on cost: :mod:`.ocp` (the runs, the
+  work-precision table, report.md), :mod:`.ocp_problems` (each problem stated once for every
+  tool), :mod:`.nosnoc_ocp` (nosnoc's statement) and :mod:`.two_modes` (the event-driven replay of
+  a control, also the independent reference of :func:`qdframe.sets.Modes`' tests);
 * :mod:`.pages` — `bench pages`: README's and docs/benchmark-results.md's tables from the reports.
 
 The models the benchmarks pose live with every other built-in model, in :mod:`qdframe.models`.

@@ -1,4 +1,4 @@
-"""`qdframe bench ocp`: optimal control with friction, qdframe against nosnoc, judged on cost.
+"""`qdframe bench run --suite ocp`: optimal control with friction, qdframe against nosnoc, judged on cost.
 
 Each problem of :mod:`.ocp_problems` is solved by qdframe (the default call, and with each
 ``accuracy=`` asked for) and by nosnoc (:mod:`.nosnoc_ocp`, for each number of control
