@@ -30,6 +30,7 @@ from pathlib import Path
 
 from ..registry import names
 from ..status import Status
+from .storage import version_and_commit
 
 NODES = (10001, 100001)
 FIELDS = ("model", "grid", "status", "points", "seconds", "certificate_s", "solve_s", "peak_mb", "baseline_mb",
@@ -140,13 +141,5 @@ def write(rows: Sequence[dict], folder: str | Path, command: str) -> None:
         writer.writeheader()
         for row in rows:
             writer.writerow({name: row.get(name) for name in FIELDS})
-    (folder / "report.md").write_text(f"# What a certified answer costs\n\n`{command}`\n\n| qdframe | {_version()} |\n"
+    (folder / "report.md").write_text(f"# What a certified answer costs\n\n`{command}`\n\n| qdframe | {version_and_commit()} |\n"
                                       f"|---|---|\n\n{summary(rows)}\n\n{table(rows)}\n", encoding="utf-8")
-
-
-def _version() -> str:
-    """qdframe's version and the commit of its source (as the run reports name it)."""
-    from .. import __version__
-    from .storage import source_commit
-
-    return f"{__version__}, commit {source_commit() or 'unknown'}"

@@ -263,6 +263,15 @@ def _unknowns(args: argparse.Namespace) -> int:
     return 0  # a measurement
 
 
+def _report_folder(out: str) -> None:
+    """--out made and its report.md writable, before the runs (a measurement must not fail after them)."""
+    try:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        raise InputError("--out", "a folder that can be made and written", out) from None
+    writable("--out", str(Path(out) / "report.md"))
+
+
 def _time_optimal(args: argparse.Namespace, argv: Sequence[str]) -> int:
     import time
 
@@ -272,11 +281,7 @@ def _time_optimal(args: argparse.Namespace, argv: Sequence[str]) -> int:
     unknown = [name for name in args.formulations if name not in FORMULATIONS]
     if unknown:
         raise InputError("--formulations", f"some of {', '.join(FORMULATIONS)}", ",".join(unknown))
-    try:  # fail before the runs, not after
-        Path(args.out).mkdir(parents=True, exist_ok=True)
-    except OSError:
-        raise InputError("--out", "a folder that can be made and written", args.out) from None
-    writable("--out", str(Path(args.out) / "report.md"))
+    _report_folder(args.out)
     start = time.perf_counter()
     rows = time_optimal.run(args.accuracy, args.formulations, args.stages, args.elements, progress=_say())
     paths = time_optimal.write_report(rows, args.out, shlex.join(["qdframe", *argv]), time.perf_counter() - start)
@@ -303,11 +308,7 @@ def _ocp(args: argparse.Namespace, argv: Sequence[str]) -> int:
     unknown = [name for name in args.models or () if name not in PROBLEMS]
     if unknown:
         raise InputError("--models", f"some of {', '.join(PROBLEMS)} with --suite ocp", ",".join(unknown))
-    try:  # fail before the runs, not after
-        Path(args.out).mkdir(parents=True, exist_ok=True)
-    except OSError:
-        raise InputError("--out", "a folder that can be made and written", args.out) from None
-    writable("--out", str(Path(args.out) / "report.md"))
+    _report_folder(args.out)
     start = time.perf_counter()
     rows = ocp.run(args.models, ocp.ACCURACY if args.accuracy is None else args.accuracy, peers=args.peers,
                    progress=_say(args.quiet))

@@ -13,8 +13,6 @@ with n_s = 2, FESD, complementarity tolerance 1e-9 (the settings of
 
 from __future__ import annotations
 
-import contextlib
-import io
 import time
 import warnings
 from dataclasses import dataclass
@@ -22,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..status import Status
-from .nosnoc_peer import TWO_MODES, nosnoc_available
+from .nosnoc_peer import TWO_MODES, nosnoc_available, settings, solve_quietly
 from .ocp_problems import OcpProblem
 from .peer import package_version
 
@@ -80,20 +78,8 @@ def run(problem: OcpProblem, stages: int, elements: int) -> OcpRun:
 
     start = time.perf_counter()
     model, ocp = statement(problem, ca, nosnoc)
-    opts = nosnoc.NosnocOpts()
-    opts.terminal_time = problem.T
-    opts.N_stages = stages
-    opts.N_finite_elements = elements
-    opts.n_s = 2
-    opts.comp_tol = 1e-9
-    opts.print_level = 0
-    chatter = io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stdout(chatter):
-        warnings.simplefilter("ignore")
-        solver = nosnoc.NosnocSolver(opts, model, ocp)
-        setup = time.perf_counter() - start
-        results = solver.solve()
-    wall = time.perf_counter() - start
+    opts = settings(nosnoc, problem.T, stages, elements)
+    _, results, setup, wall, _ = solve_quietly(nosnoc, opts, model, ocp, start)
     success = results["status"] == nosnoc.Status.SUCCESS
     iterations = int(sum(i for i in results["nlp_iter"] if i is not None))
     outcome = "success" if success else f"IPOPT did not converge ({getattr(results['status'], 'name', results['status'])})"

@@ -103,20 +103,8 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
 
     start = time.perf_counter()
     statement = _problem(model, ca, nosnoc)
-    opts = nosnoc.NosnocOpts()
-    opts.terminal_time = model.T
-    opts.N_stages = statement.stages
-    opts.N_finite_elements = max(1, math.ceil((nodes - 1) / statement.stages))
-    opts.n_s = 2
-    opts.comp_tol = 1e-9
-    opts.print_level = 0
-    chatter = io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stdout(chatter):
-        warnings.simplefilter("ignore")
-        solver = nosnoc.NosnocSolver(opts, statement.model, statement.ocp)
-        setup = time.perf_counter() - start
-        results = solver.solve()
-    wall = time.perf_counter() - start
+    opts = settings(nosnoc, model.T, statement.stages, max(1, math.ceil((nodes - 1) / statement.stages)))
+    solver, results, setup, wall, chatter = solve_quietly(nosnoc, opts, statement.model, statement.ocp, start)
 
     tau = _collocation_nodes(opts)
     t = own_times(results, tau, Grid(model.T, nodes).t)
@@ -139,14 +127,39 @@ def run_nosnoc(model: InclusionModel, nodes: int) -> PeerRun:
         f"{float(results['cost_val']):.4g}; {opts.N_stages} stage{'s' if opts.N_stages > 1 else ''} × "
         f"{opts.N_finite_elements} finite elements, Radau IIA n_s = 2; setup (CasADi/IPOPT build) {setup:.2f} s"
     )
-    if "Warning" in chatter.getvalue():
-        message += "; " + chatter.getvalue().strip().splitlines()[-1]
+    if "Warning" in chatter:
+        message += "; " + chatter.strip().splitlines()[-1]
     inputs = None
     if statement.controls:
         controls = np.asarray(results["u_list"], dtype=float).reshape(opts.N_stages, -1)
         inputs = _stagewise(controls, model.T)
     return PeerRun(Status.SOLVED if success else Status.FAILED, message, ipopt_iterations, wall, setup, x, z, history,
                    t=t, inputs=inputs)
+
+
+def settings(nosnoc, T: float, stages: int, elements: int):
+    """nosnoc's options of every run here: `stages` control stages of `elements` finite elements
+    on [0, T], Radau IIA with n_s = 2, FESD, complementarity tolerance 1e-9, silent."""
+    opts = nosnoc.NosnocOpts()
+    opts.terminal_time = T
+    opts.N_stages = stages
+    opts.N_finite_elements = elements
+    opts.n_s = 2
+    opts.comp_tol = 1e-9
+    opts.print_level = 0
+    return opts
+
+
+def solve_quietly(nosnoc, opts, model, ocp, start: float) -> tuple[object, dict, float, float, str]:
+    """nosnoc's solver built and run with its prints and warnings caught: the solver, its results,
+    the seconds since `start` when it was built (setup) and when it finished, and what it printed."""
+    chatter = io.StringIO()
+    with warnings.catch_warnings(), contextlib.redirect_stdout(chatter):
+        warnings.simplefilter("ignore")
+        solver = nosnoc.NosnocSolver(opts, model, ocp)
+        setup = time.perf_counter() - start
+        results = solver.solve()
+    return solver, results, setup, time.perf_counter() - start, chatter.getvalue()
 
 
 @dataclass

@@ -26,8 +26,6 @@ on the physical element lengths s·h_e: x and x' at nosnoc's own points.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import time
 import warnings
 from dataclasses import dataclass
@@ -36,7 +34,8 @@ import numpy as np
 
 from ..models.identification import BlockTimeOptimal
 from ..status import Status
-from .nosnoc_peer import TWO_MODES, _collocation_nodes, nosnoc_available, own_times, reconstruct
+from .nosnoc_peer import (TWO_MODES, _collocation_nodes, nosnoc_available, own_times, reconstruct, settings,
+                          solve_quietly)
 from .peer import package_version
 
 FORMULATIONS = ("global", "local")
@@ -82,13 +81,7 @@ def statement(model: BlockTimeOptimal, formulation: str, ca, nosnoc) -> tuple[ob
 
 def options(model: BlockTimeOptimal, formulation: str, stages: int, elements: int, nosnoc):
     """nosnoc's options: `stages` control stages of `elements` finite elements each on [0, model.T]."""
-    opts = nosnoc.NosnocOpts()
-    opts.terminal_time = model.T
-    opts.N_stages = stages
-    opts.N_finite_elements = elements
-    opts.n_s = 2
-    opts.comp_tol = 1e-9
-    opts.print_level = 0
+    opts = settings(nosnoc, model.T, stages, elements)
     if formulation == "local":
         opts.speed_of_time_variables = nosnoc.SpeedOfTimeVariableMode.LOCAL
         opts.speed_of_time_min, opts.speed_of_time_max = SPEED_MIN, SPEED_MAX
@@ -117,13 +110,7 @@ def run(formulation: str, stages: int, elements: int, model: BlockTimeOptimal | 
     start = time.perf_counter()
     nos_model, ocp = statement(model, formulation, ca, nosnoc)
     opts = options(model, formulation, stages, elements, nosnoc)
-    chatter = io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stdout(chatter):
-        warnings.simplefilter("ignore")
-        solver = nosnoc.NosnocSolver(opts, nos_model, ocp)
-        setup = time.perf_counter() - start
-        results = solver.solve()
-    wall = time.perf_counter() - start
+    _, results, setup, wall, _ = solve_quietly(nosnoc, opts, nos_model, ocp, start)
 
     physical = dict(results)
     physical["time_steps"] = np.asarray(results["time_steps"], dtype=float).reshape(-1) * speeds(

@@ -35,6 +35,7 @@ from ..status import Status
 from . import nosnoc_ocp
 from .nosnoc_peer import nosnoc_available
 from .peer import package_version
+from .storage import load_average, version_and_commit
 from .ocp_problems import PROBLEMS, OcpProblem
 from .two_modes import contact, integrate
 
@@ -227,9 +228,9 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
     lines = [
         "# Optimal control with friction: qdframe against nosnoc, on cost", "",
         f"Made by `{command}` in {seconds:.1f} s ({platform.python_implementation()} {platform.python_version()}, "
-        f"{platform.machine()}, {os.cpu_count()} CPUs, load average {_load()} at the end; nosnoc "
+        f"{platform.machine()}, {os.cpu_count()} CPUs, load average {load_average()} at the end; nosnoc "
         f"{package_version('nosnoc')}).", "",
-        f"| qdframe | {_version()} |", "|---|---|", "",
+        f"| qdframe | {version_and_commit()} |", "|---|---|", "",
         "Every run's control is replayed through the true Filippov dynamics from x(0) "
         "(`qdframe/bench/two_modes.py`, an event-driven integration independent of qdframe's own): "
         "the replayed cost J, its distance to J*, and the violation (the replayed motion's end miss "
@@ -244,21 +245,6 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
     ]
     lines += [f"- {row.model}, {row.solver}, {row.setting}: {row.message}" for row in rows]
     return "\n".join(lines) + "\n"
-
-
-def _version() -> str:
-    """qdframe's version and the commit of its source (as the other reports name it)."""
-    from .. import __version__
-    from .storage import source_commit
-
-    return f"{__version__}, commit {source_commit() or 'unknown'}"
-
-
-def _load() -> str:
-    try:
-        return f"{os.getloadavg()[0]:.1f}"
-    except (AttributeError, OSError):
-        return "?"
 
 
 def write_report(rows: Sequence[Row], out: str | Path, command: str, seconds: float) -> dict[str, Path]:

@@ -213,6 +213,19 @@ def qdframe_version() -> str:
     return __version__
 
 
+def version_and_commit() -> str:
+    """qdframe's version and the commit of its source, as a committed report names them."""
+    return f"{qdframe_version()}, commit {source_commit() or 'unknown'}"
+
+
+def load_average() -> str:
+    """The 1-minute load average ("?" where the system has none): other jobs slow every row alike."""
+    try:
+        return f"{os.getloadavg()[0]:.1f}"
+    except (AttributeError, OSError):
+        return "?"
+
+
 def source_commit() -> str | None:
     """The git commit of the qdframe source that runs (short hash, "+changes" when the package's
     files differ from it), or None outside a git checkout."""

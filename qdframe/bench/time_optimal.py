@@ -29,6 +29,7 @@ import numpy as np
 from ..models.identification import BlockTimeOptimal
 from ..status import Status
 from . import nosnoc_time_optimal as peer
+from .storage import load_average
 
 MODEL = BlockTimeOptimal.name  # not in the catalogue (problems.py): T free, judged here on the normalized time
 STAGES = (10, 20)
@@ -133,7 +134,7 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
     lines = [
         "# Time-optimal: block-time-optimal, qdframe against nosnoc", "",
         f"Made by `{command}` in {seconds:.1f} s ({platform.python_implementation()} {platform.python_version()}, "
-        f"{platform.machine()}, {os.cpu_count()} CPUs, load average {_load()} at the end; "
+        f"{platform.machine()}, {os.cpu_count()} CPUs, load average {load_average()} at the end; "
         f"{', '.join(sorted(versions)) or 'nosnoc not run'}).", "",
         "The block p' = v, v' ∈ [−2, 2] − Sgn(v) from rest at 0 to rest at 1 in the shortest time: "
         f"T* = (4/3)·√1.5 = {exact:.10f}, full force forward until √1.5 = 0.75·T*, then full force back.", "",
@@ -151,14 +152,6 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
     ]
     lines += [f"- {row.solver}, {row.setting}: {row.message}" for row in rows]
     return "\n".join(lines) + "\n"
-
-
-def _load() -> str:
-    """The 1-minute load average ("?" where the system has none): other jobs slow every row alike."""
-    try:
-        return f"{os.getloadavg()[0]:.1f}"
-    except (AttributeError, OSError):
-        return "?"
 
 
 def write_report(rows: Sequence[Row], out: str | Path, command: str, seconds: float) -> dict[str, Path]:
