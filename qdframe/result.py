@@ -83,6 +83,7 @@ class PenaltyRecord:
     optimality_gap: float
     penalty_rounds: tuple[tuple[float, int], ...]
     newton_step: float = 0.0  # max |x-part of the Newton step| where a descent stopped short of its optimum
+    tolerance_share: float = 0.0  # Σ|y|·tol: how far the least cost moves within the checks' tolerances (multipliers)
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,7 @@ class SolveResult:
     checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.descent.checks
     binding_check: str = ""  # the check with the largest value/tol
     error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.certificates.estimates); None: none made
+    cost_estimate: float | None = None  # a cost's: estimate of |cost − 𝒥*| (qdframe.certificates.estimates.cost_estimate)
     multipliers: np.ndarray | None = None  # a cost's: (N, n) the costates μ of x' = f (qdframe.descent.multipliers.costates)
     binding: dict[str, list[list[float]]] = field(default_factory=dict)  # bound side -> [[t_a, t_b], …] where it binds
     certificate: str | None = None  # what made the estimate: "bisection" or "replay" (qdframe.certificates.estimates)
@@ -209,7 +211,8 @@ class SolveResult:
             f"SolveResult {self.model}: {self.status}, {self.iterations} iterations, {self.nodes} nodes "
             f"(T = {self.T:.10g}{', found' if self.T_found else ''}), {self.direction} / "
             f"{self.line_search}, {self.wall_time_s:.3g} s",
-            f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.3e}" if self.cost is not None else ""),
+            f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.10g}" if self.cost is not None else "")
+            + (f" (estimate of |cost − 𝒥*| {self.cost_estimate:.2e})" if self.cost_estimate is not None else ""),
             "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
         ]
         if self.error_estimate is not None:
@@ -244,7 +247,8 @@ class SolveResult:
     def to_dataframe(self) -> "pandas.DataFrame":
         """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
         per state (the model's state names), z as x1' …, then u and λ where the model has them
-        named as the model names them), then a cost's multipliers μ_x1 … (`multipliers`), with attrs model, status, T, free_T and ``parameter_<name>``. Needs pandas: ``pip install 'qdframe[frames]'``."""
+        named as the model names them), then a cost's multipliers μ_x1 … (`multipliers`), with attrs model, status, T, free_T,
+        ``parameter_<name>`` and a cost's ``cost`` and ``cost_estimate``. Needs pandas: ``pip install 'qdframe[frames]'``."""
         pd = _optional("pandas", "to_dataframe")
         names = self._columns()
         blocks = [self.x, self.z] + [part for part in (self.u, self.selections) if part is not None]
@@ -256,15 +260,18 @@ class SolveResult:
         frame = pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
         frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),
                             "free_T": int(self.T_found),
-                            **{f"parameter_{name}": float(value) for name, value in self.parameters.items()}})
+                            **{f"parameter_{name}": float(value) for name, value in self.parameters.items()},
+                            **{name: float(value) for name, value in (("cost", self.cost),
+                                                                      ("cost_estimate", self.cost_estimate))
+                               if value is not None}})
         return frame
 
     def to_xarray(self) -> "xarray.Dataset":
         """The trajectory as an xarray Dataset: coordinate t, data variables x and z (t, state)
         with the state names as the `state` coordinate, u (t, control) and selections
         (t, selection) where the model has them, and attrs model, direction, status, message,
-        nodes, T, iterations, I, objective and the residuals (``residual_<name>``, those that
-        exist). The models declare no units, so none are attached. Needs xarray:
+        nodes, T, iterations, I, objective, the residuals (``residual_<name>``, those that
+        exist) and a cost's ``cost`` and ``cost_estimate``. The models declare no units, so none are attached. Needs xarray:
         ``pip install 'qdframe[frames]'``."""
         xr = _optional("xarray", "to_xarray")
         names = self._columns()
@@ -287,6 +294,10 @@ class SolveResult:
             attrs["solution_error"] = float(self.solution_error)
         if self.error_estimate is not None:
             attrs["error_estimate"] = float(self.error_estimate)
+        if self.cost is not None:
+            attrs["cost"] = float(self.cost)
+        if self.cost_estimate is not None:
+            attrs["cost_estimate"] = float(self.cost_estimate)
         return xr.Dataset(variables, coords=coords, attrs=attrs)
 
     def to_dict(self) -> dict[str, Any]:
@@ -325,8 +336,10 @@ class SolveResult:
             ("I = φ+χ+ω+υ+σ", f"{self.I:.3e}  (" + ", ".join(f"{k} {v:.1e}" for k, v in self.terms.items()) + ")"),
         ]
         if self.cost is not None:
-            optimum = "" if self.penalty is None else (f"  (optimality gap {self.penalty.optimality_gap:.1e}, "
-                                                        f"λ = {self.penalty.penalty:.0e})")
+            estimate = [] if self.cost_estimate is None else [f"estimate of |cost − 𝒥*| {self.cost_estimate:.1e}"]
+            gap = [] if self.penalty is None else [f"optimality gap {self.penalty.optimality_gap:.1e}",
+                                                   f"λ = {self.penalty.penalty:.0e}"]
+            optimum = f"  ({', '.join(estimate + gap)})" if estimate or gap else ""
             rows.insert(7, ("cost", f"{self.cost:.10g}" + optimum))
         if self.parameters:
             rows.insert(4, ("parameters", _named(self.parameters)))

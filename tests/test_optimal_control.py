@@ -37,6 +37,36 @@ def test_the_default_call_is_solved_at_the_exact_optimum(solved):
     assert error <= result.error_estimate
 
 
+def test_the_cost_estimate_bounds_the_distance_to_the_exact_optimum(solved):
+    """result.cost_estimate ≥ |J − J*| against the closed form, and within the target that
+    `solved` promises of the cost, 1e-6·max(1, |J|); the data frame carries both."""
+    model, result = solved
+    assert abs(result.cost - model.exact_cost) <= result.cost_estimate <= 1e-6 * max(1.0, abs(result.cost))
+    assert result.to_dataframe().attrs["cost_estimate"] == result.cost_estimate
+    assert "cost estimate" in result.message
+
+
+@pytest.mark.parametrize("scheme", ["trapezoid", "radau-iia"])
+@pytest.mark.parametrize("nodes", [11, 21, 41])
+def test_the_cost_estimate_bounds_the_error_of_a_coarse_grid(scheme, nodes):
+    """On fixed grids whose cost is far from J* (trapezoid: 1.08 at 11 points), the estimate
+    from the bisected mesh still bounds |J − J*| (lq-terminal's closed form 850/23)."""
+    model = load_model("lq-terminal")
+    result = qdframe.solve(model, nodes=nodes, scheme=scheme)
+    assert result.converged and result.cost_estimate is not None
+    assert abs(result.cost - model.exact_cost) <= result.cost_estimate
+
+
+def test_a_cost_whose_estimate_misses_its_target_is_uncertified():
+    """A loose residual_tol lets the least cost move by Σ|y|·tol (the multipliers times what the
+    checks allow), more than 1e-6·|J|: the trajectory's estimate meets its target, the cost's
+    does not, and the result says so."""
+    result = qdframe.solve("lq-terminal", residual_tol=1e-6)
+    assert result.status == "uncertified"
+    assert result.cost_estimate > 1e-6 * abs(result.cost) and result.penalty.tolerance_share > 1e-6 * abs(result.cost)
+    assert "the cost's estimate" in result.message
+
+
 def test_the_multipliers_are_the_costates(solved):
     """result.multipliers (the multipliers μ of x' = f) are −p, p Pontryagin's costates of the
     exact optimum (qdframe.models.optimal_references), from the second point on (the first is

@@ -46,6 +46,11 @@ def test_the_cost_is_the_time_and_the_message_its_estimate(fastest):
     assert f"error estimate {fastest.error_estimate:.1e}" in fastest.message
 
 
+def test_the_cost_estimate_bounds_the_distance_to_the_least_time(fastest):
+    """The cost's estimate (the bisected mesh, the gap 2λ·I and Σ|y|·tol) bounds |T − T*|."""
+    assert abs(fastest.cost - BlockTimeOptimal.exact_T) <= fastest.cost_estimate <= 1e-6 * max(1.0, fastest.cost)
+
+
 def test_the_gap_2_lambda_I_is_the_distance_to_the_least_time(fastest):
     """The first-order optimality gap T* − T_λ ≈ 2λ·I (optimum's docstring), against the exact T*."""
     gap = fastest.options["optimality_gap"]

@@ -163,6 +163,23 @@ def bisection(functional: Functional, result: SolveResult, resolve: Resolve) -> 
     return Estimate(value, _local(grid, difference, ESTIMATE_FACTOR), BISECTION, "", companion)
 
 
+def cost_estimate(result: SolveResult, finer: SolveResult | None) -> float | None:
+    """An estimate of |𝒥 − 𝒥*|, 𝒥 the cost of the returned trajectory (``result.cost``, the
+    scheme's quadrature) and 𝒥* the least cost over the solutions of the continuous problem,
+    from the solve on the bisected mesh that made the bisection estimate (`finer`), as that
+    estimate does for x: 𝒥_h − 𝒥* ≈ (𝒥_h − 𝒥_{h/2})·2^p/(2^p − 1), taken as ESTIMATE_FACTOR·
+    |𝒥_h − 𝒥_{h/2}|, plus what the discrete solves leave and their difference cannot show:
+    each one's optimality gap |yᵀr| (``penalty.optimality_gap``, the first-order distance of
+    its 𝒥 from its discrete problem's optimum), the result's Σ|y|·tol (``penalty.tolerance_share``:
+    how far the least cost moves while every pointwise check is met within its tolerance, the
+    same for both solves) and rounding, 64ε·max(1, |𝒥|). None without a cost or a bisected solve."""
+    if result.cost is None or finer is None or finer.cost is None:
+        return None
+    gaps = sum(abs(solve.penalty.optimality_gap) for solve in (result, finer) if solve.penalty is not None)
+    share = result.penalty.tolerance_share if result.penalty is not None else 0.0
+    return ESTIMATE_FACTOR * abs(result.cost - finer.cost) + gaps + share + ROUNDING * max(1.0, abs(result.cost))
+
+
 def observed_difference(model, grid: Grid, x: np.ndarray, other_grid: Grid, other: np.ndarray) -> np.ndarray:
     """What the user is given by `other` (on `other_grid`) minus what `x` (on `grid`) gives, at
     x's points: at the user's times (with a free T, t = s·T, each solution its own T) and in

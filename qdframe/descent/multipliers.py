@@ -82,6 +82,29 @@ def gap(functional: Functional, residuals: Shifts) -> float:
     return abs(functional.penalty * total)
 
 
+def tolerance_share(functional: Functional, xi: np.ndarray, residual_tol: float) -> float:
+    """Σ|y|·tol over every constraint behind I at ξ, y its multiplier (as in :func:`gap`) and tol
+    what its pointwise check lets it miss by (:mod:`.checks`: residual_tol times the size of x,
+    of z for a velocity's set, 1 for a selection): how far the least cost can move while every
+    check passes, to first order (the least cost's sensitivity to a constraint's right-hand side
+    is its multiplier)."""
+    residuals = functional.constraint_residuals(xi)
+    x, z = functional.split(xi)
+    tol_x = residual_tol * max(1.0, float(np.max(np.abs(x))))
+    tol_z = residual_tol * max(1.0, float(np.max(np.abs(z), initial=0.0)))
+    s = functional.shifts if functional.shifts is not None else residuals.cleared()
+    w = functional.grid.weights[:, None]
+    sides = residuals.blocks + s.blocks
+    shifted = np.where(s.point[None, :, None], sides, np.maximum(sides, 0.0))
+    total = tol_x * (float(np.sum(np.abs(w * (residuals.consistency + s.consistency))))
+                     + float(np.sum(np.abs(residuals.end + s.end)))
+                     + float(np.sum(np.abs(w * (residuals.surface + s.surface))))
+                     + float(np.sum(w * np.maximum(residuals.bounds + s.bounds, 0.0))))
+    total += tol_z * float(np.sum(np.abs(w[:, :, None] * shifted)))
+    total += residual_tol * float(np.sum(np.abs(w * (residuals.selections + s.selections))))
+    return functional.penalty * total
+
+
 def iterate(functional: Functional, result: SolveResult) -> np.ndarray:
     """ξ of a descent's result on its functional."""
     u = None if result.u is None else np.asarray(result.u, float)
@@ -202,8 +225,10 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         spent.append((weight, result.iterations))
         result = _after(earlier, result)
         last_violation, count = now, count + 1
-    result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent), move or 0.0)
-    result.multipliers = costates(functional, iterate(functional, result))
+    xi = iterate(functional, result)
+    share = tolerance_share(functional, xi, options.residual_tol)
+    result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent), move or 0.0, share)
+    result.multipliers = costates(functional, xi)
     return result
 
 

@@ -128,6 +128,7 @@ class BlockTimeOptimal(_Known):
     default_T = 2.0
     free_T = True
     exact_T = 4 / 3 * np.sqrt(1.5)
+    exact_cost = exact_T  # the cost is the time
 
     def sets(self, p, v):
         return {p: v, v: Interval(-2, 2) - Sgn(v)}

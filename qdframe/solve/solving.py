@@ -12,7 +12,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import unknowns
+from ..descent import multipliers
 from ..descent.loop import ProgressCallback
+from ..certificates.estimates import cost_estimate
 from ..directions.base import DirectionSolver
 from ..functional import Functional
 from ..line_searches.base import LineSearch
@@ -136,7 +138,9 @@ def _verdict(attempt: Attempt) -> tuple[Attempt, Functional, SolveResult]:
     functional, result, refined = certify_result(run.functional, run.result, plan.plan, attempt.progress,
                                                  plan.starts)
     if attempt.rounds:
-        _penalty_verdict(functional, result, attempt.rounds, plan.target)
+        _penalty_verdict(functional, result, attempt.rounds, plan.target, plan.options.residual_tol)
+    if result.cost is not None:
+        _cost_verdict(functional, result, refined.finer, plan.target)
     result.iterations = result.history[-1].iteration
     return attempt, functional, _summarized(plan, run, functional, result, refined)
 
@@ -169,12 +173,15 @@ def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallba
     return result
 
 
-def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, target: float) -> None:
+def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, target: float,
+                     residual_tol: float) -> None:
     """The penalty's part added to the error estimate, the gap and the rounds in the options,
     and `solved` withdrawn where the sum passes the target."""
     weight = rounds[-1].weight
     extra = optimum.penalty_error(rounds)
-    result.penalty = PenaltyRecord(weight, optimum.gap(result, weight), tuple((r.weight, r.iterations) for r in rounds))
+    xi = functional.pack(result.x, result.z, result.u, result.selections)
+    result.penalty = PenaltyRecord(weight, optimum.gap(result, weight), tuple((r.weight, r.iterations) for r in rounds),
+                                   tolerance_share=multipliers.tolerance_share(functional, xi, residual_tol))
     if result.error_estimate is not None:
         grid = result.error_estimate
         result.error_estimate += extra
@@ -191,6 +198,26 @@ def _penalty_verdict(functional: Functional, result: SolveResult, rounds: list, 
         elif len(rounds) > 1:  # (one round: the cost's minimum reached with the model's λ, nothing to add)
             result.remarks.append(f"an optimum of the cost: gap {optimum.gap(result, weight):.1e} (2λ·I, "
                                   f"λ = {weight:.0e}), penalty's part of the estimate {extra:.1e}")
+
+
+def _cost_verdict(functional: Functional, result: SolveResult, finer: SolveResult | None, target: float) -> None:
+    """A cost's estimate of |𝒥 − 𝒥*| (:func:`qdframe.certificates.estimates.cost_estimate`), and
+    `solved` withdrawn where there is none or it passes target·max(1, |𝒥|): `solved` promises
+    the optimum as well as the trajectory."""
+    result.cost_estimate = cost_estimate(result, finer)
+    if result.status != Status.SOLVED:
+        return
+    bound = target * max(1.0, abs(float(result.cost)))  # type: ignore[arg-type]
+    if result.cost_estimate is None:
+        result.status = Status.UNCERTIFIED
+        result.remarks.append(f"the cost {result.cost:.6g} has no estimate of its distance to the optimum "
+                              f"(it needs the bisection certificate's solve on the bisected mesh)")
+    elif result.cost_estimate > bound:
+        result.status = Status.UNCERTIFIED
+        result.remarks.append(f"the cost's estimate {result.cost_estimate:.1e} (|𝒥 − 𝒥*|, from the bisected "
+                              f"mesh) exceeds the target {bound:.1e}")
+    else:
+        result.remarks.append(f"cost estimate {result.cost_estimate:.1e} ≤ target {bound:.1e}")
 
 
 def _summarized(plan: Staged, run: Run, functional: Functional, result: SolveResult, refined: Refined) -> SolveResult:

@@ -80,16 +80,19 @@ def certify_result(functional: Functional, result: SolveResult, plan: Plan, prog
     result.verdict = VerdictRecord(outcome.seconds, *((accuracy, max_nodes) if accuracy is not None else ()))
     if note:
         result.remarks.append(note)
-    return functional, result, Refined(tuple(meshes), tuple(shrunk_to))
+    finer = found.companion if found.companion is not None and found.value is not None else None
+    return functional, result, Refined(tuple(meshes), tuple(shrunk_to), finer)
 
 
 @dataclasses.dataclass(frozen=True)
 class Refined:
     """What the verdict's own descents add to the solve's record: (nodes, iterations) of each
-    mesh a refinement solved on, and the (ε, δ) each of them ended with."""
+    mesh a refinement solved on, the (ε, δ) each of them ended with, and the solve on the bisected
+    mesh of the returned trajectory's estimate (a cost's :func:`qdframe.certificates.estimates.cost_estimate`)."""
 
     meshes: tuple[tuple[int, int], ...] = ()
     shrunk_to: tuple[tuple[float, float], ...] = ()
+    finer: SolveResult | None = None  # the solve on the bisected mesh of the returned trajectory's estimate, if any
 
 
 def _status(functional: Functional, result: SolveResult, found, target: float, note: str, refining: bool) -> str:
