@@ -211,7 +211,7 @@ class SolveResult:
             f"SolveResult {self.model}: {self.status}, {self.iterations} iterations, {self.nodes} nodes "
             f"(T = {self.T:.10g}{', found' if self.T_found else ''}), {self.direction} / "
             f"{self.line_search}, {self.wall_time_s:.3g} s",
-            f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.10g}" if self.cost is not None else "")
+            f"  I {self.I:.3e}, objective {self.objective:.3e}" + (f", cost {self.cost:.3e}" if self.cost is not None else "")
             + (f" (estimate of |cost − 𝒥*| {self.cost_estimate:.2e})" if self.cost_estimate is not None else ""),
             "  residuals: " + ", ".join(f"{name} {value:.2e}" for name, value in self.residuals().items()),
         ]
