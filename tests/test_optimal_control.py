@@ -235,3 +235,21 @@ def test_nosnocs_cart_pole_swings_up():
 
     result = qdframe.solve(NosnocCartPole())
     assert result.solved and result.cost < 1000.0, (result.status, result.cost)
+
+
+def test_a_backend_failure_outside_a_descent_is_no_step():
+    """The rounds' own Newton steps (the optimum's check, a stalled round's full step) run
+    outside a descent, whose steps turn a backend's failure into `failed`: there it is no step,
+    not an exception out of qdframe.solve (a hand-scaled motor raised BackendError, AlmostSolved)."""
+    from qdframe.errors import BackendError
+
+    class Failing:
+        def start(self, functional):
+            pass
+
+        def compute(self, functional, xi, delta):
+            raise BackendError("direction 'failing': the step QP ended with status AlmostSolved")
+
+    from qdframe.descent.options import DescentOptions
+
+    assert multipliers._newton_step(None, Failing(), DescentOptions(), np.zeros((3, 2))) is None

@@ -33,6 +33,7 @@ import numpy as np
 
 from . import checks
 from ..directions.base import DirectionSolver
+from ..errors import BackendError
 from ..functional import Functional
 from ..functional.shifts import Shifts
 from ..result import PenaltyRecord, SolveResult
@@ -162,16 +163,23 @@ def _optimal(functional: Functional, solver: DirectionSolver, options: DescentOp
     error estimate adds it); None otherwise."""
     if functional.terms(xi).I > options.tol or checks.failures(checks.checks(functional, xi, options.residual_tol)):
         return None
-    solver.start(functional)
-    step = solver.compute(functional, xi, options.delta).step
+    step = _newton_step(functional, solver, options, xi)
+    if step is None:
+        return None
     scale = max(1.0, float(np.max(np.abs(functional.split(xi)[0]))))
     move = float(np.max(np.abs(step[:, : functional.n])))
     return move if move <= STEP_TOL * scale else None
 
 
-def _full_step(functional: Functional, solver: DirectionSolver, options: DescentOptions, xi: np.ndarray) -> np.ndarray:
+def _newton_step(functional: Functional, solver: DirectionSolver, options: DescentOptions,
+                 xi: np.ndarray) -> np.ndarray | None:
+    """The direction's step at ξ outside a descent; None where its backend fails (the descent's
+    own steps turn such a failure into `failed`; here there is simply no such step)."""
     solver.start(functional)
-    return xi + solver.compute(functional, xi, options.delta).step
+    try:
+        return solver.compute(functional, xi, options.delta).step
+    except BackendError:
+        return None
 
 
 def rounds(functional: Functional, solver: DirectionSolver, options: DescentOptions, first: SolveResult,
@@ -219,8 +227,9 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         earlier = result
         result = once(xi if warm else start, budget - used, True, False)
         if result.iterations == 0 and result.status != Status.SOLVED:
-            trial = _full_step(functional, solver, options, xi)
-            if violation(functional.constraint_residuals(trial)) < now:
+            step = _newton_step(functional, solver, options, xi)
+            trial = xi if step is None else xi + step
+            if step is not None and violation(functional.constraint_residuals(trial)) < now:
                 result = _after(result, once(trial, budget - used, True, False))
         spent.append((weight, result.iterations))
         result = _after(earlier, result)
