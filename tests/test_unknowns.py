@@ -409,3 +409,30 @@ def test_a_period_from_a_guess_above_it_tries_the_sweeps_next_candidate():
     assert result.solved, result.message
     assert abs(result.T - _biased_relay_period()) <= 1e-6 * max(1.0, float(np.max(np.abs(result.x))))
     assert "from the first T = 6.12" in result.message and "it is solved" in result.message
+
+
+def test_a_periods_candidate_is_never_left_for_the_trivial_period():
+    """Each candidate of the sweep is solved with T bounded below by half of it (PERIOD_FLOOR):
+    from 6.12 (one and a half periods) the solve had shrunk T to 8.6e-8, from the guess 8.0
+    (twice the period, 8.17) every try ended near T = 0 (`stationary` at T = 2e-9)."""
+    result = qdframe.solve(_BiasedRelay(T=8.0))
+    assert result.T > 0.5 * 4.0 and "T shrank" not in result.message
+    first = qdframe.solve(_BiasedRelay())
+    assert "from the first T = 6.12" in first.message and "(T = 6." in first.message
+
+
+@pytest.mark.xfail(strict=True, reason="README, Known failures: a period of more than half an orbit from its "
+                                       "candidate: `stationary` at T = 4.936002 (1.5 periods are 4.93578), its "
+                                       "selections 5e-5 from Sgn")
+def test_one_and_a_half_periods_of_a_smaller_orbit_are_solved():
+    """Issue 55: (c, A) = (0.1, 0.5) from the guess 4.11, whose nearest candidates are one and a
+    half periods (4.93578) and one period (3.29052): the default call ends at a solution."""
+    class Smaller(_BiasedRelay):
+        default_x0 = (0.5, 0.0)
+        default_T = 4.11
+
+        def sets(self, x1, x2):
+            return {x1: x2, x2: -x1 - Sgn(x1) + 0.1}
+
+    result = qdframe.solve(Smaller())
+    assert result.solved, result.message

@@ -32,6 +32,7 @@ from .unwrap import unwrap
 from .verdict import Refined, certify_result
 
 PERIOD_CANDIDATES = 3  # a period's solve tries at most this many of the sweep's first T's (nearest first)
+PERIOD_FLOOR = 0.5  # … each with T bounded below by this share of its first T (T → 0 closes every period)
 
 
 def solve(
@@ -160,6 +161,8 @@ def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallba
     for T0 in tries:
         wrapper = unknowns.Unknowns(model)
         wrapper.T0 = T0
+        if wrapper.periodic and len(candidates) > 1 and wrapper.time_bound.lo < PERIOD_FLOOR * T0:
+            wrapper.time_bound = unknowns.Bound(PERIOD_FLOOR * T0, wrapper.time_bound.hi)
         result = unwrap(wrapper, _solve(wrapper, chosen, progress, time.perf_counter()))
         if result.status == Status.SOLVED:
             if first is not None:
