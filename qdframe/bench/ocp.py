@@ -61,6 +61,7 @@ class Row:
     wall_time_s: float
     points: int  # the run's own time points (qdframe) or finite elements (nosnoc)
     message: str = ""
+    own_estimate: float | None = None  # qdframe's estimate of |own cost − J*| (result.cost_estimate); None: none
 
 
 def scale(problem: OcpProblem) -> float:
@@ -69,7 +70,8 @@ def scale(problem: OcpProblem) -> float:
 
 
 def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_cost: float, wall: float, points: int,
-          control: Callable[[float], np.ndarray], breaks: Sequence[float], samples: np.ndarray, message: str) -> Row:
+          control: Callable[[float], np.ndarray], breaks: Sequence[float], samples: np.ndarray, message: str,
+          own_estimate: float | None = None) -> Row:
     """The row of a run whose control is `control` (its `breaks`, and its values at `samples`)."""
     try:
         push = problem.push if problem.friction is not None and callable(problem.friction[1]) else None
@@ -77,7 +79,7 @@ def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_co
                            breaks, lambda x, u: float(problem.running(x, u)), problem.terminal)
     except RuntimeError as exc:
         return Row(problem.name, solver, setting, Status(status).value, float("nan"), own_cost, float("nan"),
-                   float("nan"), wall, points, f"{message}; {exc}")
+                   float("nan"), wall, points, f"{message}; {exc}", own_estimate)
     miss = max((abs(motion.x_end[i] - value) for i, value in problem.end.items()), default=0.0)
     excess = 0.0
     if problem.u_bounds is not None:
@@ -88,7 +90,7 @@ def judge(problem: OcpProblem, solver: str, setting: str, status: Status, own_co
     cost_error = abs(motion.cost - problem.best) if problem.best is not None else float("nan")
     message = f"{message}; replayed x(T) = ({', '.join(f'{value:.6g}' for value in motion.x_end)})"
     return Row(problem.name, solver, setting, Status(status).value, float(motion.cost), float(own_cost),
-               float(cost_error), float(max(miss, excess, 0.0)), float(wall), int(points), message)
+               float(cost_error), float(max(miss, excess, 0.0)), float(wall), int(points), message, own_estimate)
 
 
 def run_qdframe(problem: OcpProblem, accuracy: float | None = None) -> Row:
@@ -103,7 +105,9 @@ def run_qdframe(problem: OcpProblem, accuracy: float | None = None) -> Row:
     setting = "default call" if accuracy is None else f"accuracy={accuracy:g}"
     message = f"{result.iterations} iterations, N = {result.nodes}: {result.message}"
     own = float(result.cost) if result.cost is not None else float("nan")
-    return judge(problem, "qdframe", setting, result.status, own, wall, result.nodes, control, breaks, samples, message)
+    estimate = float(result.cost_estimate) if result.cost_estimate is not None else None
+    return judge(problem, "qdframe", setting, result.status, own, wall, result.nodes, control, breaks, samples, message,
+                 estimate)
 
 
 def scheme_control(result) -> tuple[Callable[[float], np.ndarray], np.ndarray, np.ndarray]:
@@ -196,12 +200,13 @@ def _tell(progress: Callable[[str], None] | None, row: Row) -> None:
 
 def table(rows: Sequence[Row]) -> str:
     """Every run (Markdown)."""
-    lines = ["| model | solver | setting | status | replayed cost | own cost | abs(J − J*) | violation | wall time (s) "
-             "| points |", "|:---|:---|:---|:---|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| model | solver | setting | status | replayed cost | own cost | own estimate | abs(J − J*) | violation "
+             "| wall time (s) | points |", "|:---|:---|:---|:---|---:|---:|---:|---:|---:|---:|---:|"]
     for row in rows:
+        estimate = f"{row.own_estimate:.1e}" if row.own_estimate is not None else "—"
         lines.append(f"| {row.model} | {row.solver} | {row.setting} | {row.status} | {row.cost:.10g} | "
-                     f"{row.own_cost:.10g} | {row.cost_error:.1e} | {row.violation:.1e} | {row.wall_time_s:.2f} | "
-                     f"{row.points} |")
+                     f"{row.own_cost:.10g} | {estimate} | {row.cost_error:.1e} | {row.violation:.1e} | "
+                     f"{row.wall_time_s:.2f} | {row.points} |")
     return "\n".join(lines)
 
 
@@ -234,7 +239,8 @@ def report(rows: Sequence[Row], command: str, seconds: float) -> str:
         "Every run's control is replayed through the true Filippov dynamics from x(0) "
         "(`qdframe/bench/two_modes.py`, an event-driven integration independent of qdframe's own): "
         "the replayed cost J, its distance to J*, and the violation (the replayed motion's end miss "
-        "and the control's bound excess). J*: " + "; ".join(
+        "and the control's bound excess); beside them each run's own cost and qdframe's estimate of its distance "
+        "to J* (`result.cost_estimate`, what a cost's `solved` certifies). J*: " + "; ".join(
             f"{name} {PROBLEMS[name].source}" for name in dict.fromkeys(row.model for row in rows)) + ".", "",
         "## Time to a cost within ε", "",
         "The least wall time of a run with abs(J − J*) ≤ ε·max(1, |J*|) and violation ≤ ε·max(1, |x0|, |xT|).", "",
@@ -263,6 +269,11 @@ def write_report(rows: Sequence[Row], out: str | Path, command: str, seconds: fl
 def read_rows(path: str | Path) -> list[Row]:
     """The rows of a results.csv (:func:`write_report`)."""
     numbers = {"cost", "own_cost", "cost_error", "violation", "wall_time_s"}
+
+    def read(key: str, value: str):
+        if key == "own_estimate":  # empty where the run has none (nosnoc's)
+            return float(value) if value else None
+        return float(value) if key in numbers else int(value) if key == "points" else value
+
     with open(path, newline="") as handle:
-        return [Row(**{key: float(value) if key in numbers else int(value) if key == "points" else value
-                       for key, value in line.items()}) for line in csv.DictReader(handle)]
+        return [Row(**{key: read(key, value) for key, value in line.items()}) for line in csv.DictReader(handle)]

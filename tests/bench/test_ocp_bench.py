@@ -68,6 +68,8 @@ def test_the_suite_judges_qdframe_and_nosnoc_by_the_replayed_cost(tmp_path):
     mine, theirs = rows
     assert (mine.solver, mine.status, theirs.solver, theirs.status) == ("qdframe", "solved", "nosnoc", "solved")
     assert mine.cost_error <= 1e-6 * PROBLEMS["lq-terminal"].best and mine.violation == 0.0
+    # qdframe's own estimate bounds its own cost's distance to J*; nosnoc gives none
+    assert abs(mine.own_cost - PROBLEMS["lq-terminal"].best) <= mine.own_estimate and theirs.own_estimate is None
     assert theirs.cost > PROBLEMS["lq-terminal"].best + 1e-3
     assert theirs.cost == pytest.approx(theirs.own_cost, rel=1e-9)
     paths = ocp.write_report(rows, tmp_path, "qdframe bench run --suite ocp", 1.0)
