@@ -97,8 +97,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the choice in each fixed set (a bounded input): held on each mesh interval's "
                             "stages (default) or free at every point")
     solve.add_argument("--selection-scale", type=positive_float, default=1.0, help="c of the natural map (default 1)")
-    solve.add_argument("--residual-tol", type=positive_float, default=1e-8,
-                       help="`solved` needs every pointwise residual ≤ this (default 1e-8)")
+    solve.add_argument("--residual-tol", type=positive_float, default=None,
+                       help="`solved` needs every pointwise residual ≤ this (default 1e-8, and at most "
+                            "--accuracy/100)")
     solve.add_argument("--accuracy", type=positive_float,
                        help="refine the mesh (switch times located) until the error estimate is ≤ X·max(1, max|x|) "
                             "(default 1e-6 without --nodes; scheme default radau-iia)")

@@ -12,6 +12,8 @@ first points        `nodes`, else 21 (or the model's motion)   `nodes`, else 101
 scheme              `scheme`, else radau-iia (implicit Euler   `scheme`, else the model's
                     first, to find the switches)               `default_scheme`
 budget (max_iter)   the direction's `certified_max_iter`       500
+residual_tol        1e-8, and at most target/100 (the checks   1e-8
+                    under a target below 1e-6)
 ε floor             1e-12 (ε and δ shrink)                     ε (the paper's fixed ε and δ)
 ==================  =========================================  ==================================
 """
@@ -40,6 +42,10 @@ DEFAULT_NODES = 101  # the paper's tables and the benchmarks' fixed grids (`node
 ACCURACY_START_NODES = 21  # `nodes` when not given under `accuracy`: the first mesh, refined from there
 ACCURACY_SCHEME = "radau-iia"  # the scheme of an accuracy request that names none: order 3
 BOOTSTRAP_SCHEME = "implicit-euler"  # an accuracy request's first solves: finds the switches robustly
+DEFAULT_RESIDUAL_TOL = 1e-8  # the pointwise checks' tolerance (qdframe.descent.checks) …
+RESIDUAL_SHARE = 1e-2  # … and, refining to a target, at most this share of it: the estimate adds the residuals'
+# own defects (boundary error, T·inclusion residual: certificates.estimates.defects) and a cost's Σ|y|·tol, which
+# checks at 1e-8 leave above a target of 1e-8 (least-effort-bounded to accuracy=1e-8: uncertified, cost estimate 3.4e-7)
 ESTIMATE_DIRECTION, ESTIMATE_LINE_SEARCH = "gauss-newton", "armijo"  # a bisection estimate's solve, whatever the user's
 
 
@@ -88,7 +94,7 @@ class Plan:
 
 def plan(model: InclusionModel, nodes: int | None = None, direction: str | DirectionSolver = "gauss-newton",
          line_search: str | LineSearch | None = None, *, max_iter: int | None = None, tol: float | None = None,
-         delta: float = 1e-3, eps: float = 1e-2, gamma_max: float = 1.0, residual_tol: float = 1e-8,
+         delta: float = 1e-3, eps: float = 1e-2, gamma_max: float = 1.0, residual_tol: float | None = None,
          eps_floor: float | None = None, continuation: Sequence[int] | str | None = None,
          scheme: str | Scheme | None = None, signs: str = "exact", selection_scale: float = 1.0,
          inputs: str = "held", mesh: Sequence[float] | np.ndarray | None = None, estimate: bool = True,
@@ -127,6 +133,9 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
                          "paper's min-norm direction does not model them", direction)
     if max_iter is None:  # a certified solve: the direction's budget (a first-order method needs more)
         max_iter = solver.certified_max_iter if refining else DEFAULT_MAX_ITER
+    target = DEFAULT_ACCURACY if accuracy is None else float(accuracy)
+    if residual_tol is None:  # the checks well inside the target (the module's table)
+        residual_tol = min(DEFAULT_RESIDUAL_TOL, RESIDUAL_SHARE * target) if refining else DEFAULT_RESIDUAL_TOL
     if eps_floor is None:  # a fixed grid keeps the paper's ε and δ
         eps_floor = EPS_FLOOR if refining else eps
     options = DescentOptions(
@@ -135,7 +144,7 @@ def plan(model: InclusionModel, nodes: int | None = None, direction: str | Direc
     )
     search = make_line_search(solver.default_line_search if line_search is None else line_search)
     return Plan(
-        refining=refining, target=DEFAULT_ACCURACY if accuracy is None else float(accuracy),
+        refining=refining, target=target,
         nodes=(ACCURACY_START_NODES if refining else DEFAULT_NODES) if nodes is None else nodes,
         mesh=None if mesh is None else tuple(mesh_times(mesh, model.T)),
         from_motion=refining and mesh is None and nodes is None, scheme=requested,

@@ -46,7 +46,7 @@ def solve(
     delta: float = 1e-3,
     eps: float = 1e-2,
     gamma_max: float = 1.0,
-    residual_tol: float = 1e-8,
+    residual_tol: float | None = None,
     eps_floor: float | None = None,
     continuation: Sequence[int] | str | None = None,
     progress: ProgressCallback | None = None,
@@ -86,7 +86,8 @@ def solve(
     restate the model with T free or fixed, or other guesses of its unknown parameters.
 
     The descent (:mod:`qdframe.descent`) stops `solved` when the objective and I are ≤ `tol`
-    (the model's default) and every pointwise check passes (`residual_tol`), `stationary`
+    (the model's default) and every pointwise check passes (`residual_tol`: 1e-8, and at most
+    accuracy/100 when refining to a tighter target), `stationary`
     when it can go no further (the paper's δ, ε, γ̄ as `delta`, `eps`, `gamma_max`; ε and δ
     shrink down to `eps_floor`), `max_iter` when the budget is spent, `failed` when a
     backend reports an error. The verdict keeps `solved` only where the estimate meets the
