@@ -216,9 +216,9 @@ def test_a_binding_state_bound_is_certified_by_the_default_call():
     assert result.solved, result.message
 
 
-@pytest.mark.xfail(strict=True, reason="README, Known failures: nosnoc's motor with guide friction ends `stationary` "
-                                       "on the first grid (21 points, 500 iterations) with the motor at rest: the "
-                                       "first descent, without the cost, stops at a local minimum of I")
+@pytest.mark.xfail(strict=True, reason="README, Known failures: nosnoc's motor with guide friction ends `max_iter` "
+                                       "on the first grid (21 points, 500 iterations), x1(T) 1.8e-3 off, the "
+                                       "friction's selection 1.2e-2 from Sgn(v1)")
 def test_nosnocs_motor_example_is_solved():
     from qdframe.bench.ocp_problems import NosnocMotor
 
