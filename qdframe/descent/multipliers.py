@@ -134,14 +134,14 @@ def optimum(functional: Functional, solver: DirectionSolver, options: DescentOpt
         functional.set_multipliers(functional.shifts, max(functional.penalty, weight))
     first = once(start, budget, near or feasible is not None)
     if feasible is not None:
-        first = _after(feasible, first)
+        first = after(feasible, first)
     if budget <= 0:
         return first
     origin = start if start is not None else functional.initial_point()
     return rounds(functional, solver, options, first, once, origin, options.max_iter)
 
 
-def _after(earlier: SolveResult, later: SolveResult) -> SolveResult:
+def after(earlier: SolveResult, later: SolveResult) -> SolveResult:
     """`later` with `earlier`'s history before its own, its iterations and time counted on."""
     later.history = _joined(earlier.history, later.history)
     later.iterations = later.history[-1].iteration
@@ -230,9 +230,9 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
             step = _newton_step(functional, solver, options, xi)
             trial = xi if step is None else xi + step
             if step is not None and violation(functional.constraint_residuals(trial)) < now:
-                result = _after(result, once(trial, budget - used, True, False))
+                result = after(result, once(trial, budget - used, True, False))
         spent.append((weight, result.iterations))
-        result = _after(earlier, result)
+        result = after(earlier, result)
         last_violation, count = now, count + 1
     xi = iterate(functional, result)
     share = tolerance_share(functional, xi, options.residual_tol)

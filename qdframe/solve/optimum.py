@@ -38,12 +38,14 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..certificates.estimates import observed_difference
+from ..descent.multipliers import PENALTY_CAP
 from ..model import InclusionModel
 from .start import straight_guess
 from ..status import Status
@@ -57,6 +59,7 @@ RAISE_SAFETY = 10.0  # λ is raised this much past what the first-order rates sa
 MIN_RAISE, MAX_RAISE = 10.0, 1e4  # the raise of one round
 MAX_PENALTY = 1e12  # past it the steps' rounding, not the penalty, limits the answer
 WARM_SHARE = 0.1  # a round starts from the last one's trajectory where its gap is within this share of its cost
+EASE = 0.1  # a raised λ restarted far from its path x_λ is first solved at this share of it (needs_easing)
 
 
 @dataclasses.dataclass
@@ -135,6 +138,33 @@ def raise_penalty(model: InclusionModel, first: tuple[Functional, SolveResult], 
         warm = last.cost is not None and gap(last, rounds[-1].weight) <= WARM_SHARE * abs(last.cost)
         rounds.append(Round(weight, *rerun(penalized(model, weight, last if warm else None))))
     return rounds
+
+
+def needs_easing(functional: Functional, start: np.ndarray) -> bool:
+    """Whether a descent of 𝒥 + λ·I from `start` (another grid's solution, interpolated) should
+    first run at EASE·λ (:func:`eased`): a raised penalty (no multipliers' shifts, λ above their
+    cap) whose part λ·I of the start's objective exceeds the cost's. Where the refinement moves
+    from implicit Euler's first grid to radau-iia on its mesh, λ·I is 1e6–1e9 at λ ~ 1e9 (the
+    first-order scheme's solution is O(h) from the other's); Gauss–Newton at that λ cannot move
+    along the constraints, and the descent ended wherever rounding led it: the fastest move by
+    5 with |u| ≤ 2 from T = 2 `stationary` at T = 4.87 with OpenBLAS's Haswell kernels (T* = 3.65).
+    At EASE·λ it reaches x_λ', and from there λ·(1/EASE), a step the rounds take, is safe."""
+    if functional.cost is None or functional.shifts is not None or functional.penalty <= PENALTY_CAP:
+        return False
+    terms = functional.terms(start)
+    penalty = functional.penalty * float(terms.I)
+    return penalty > abs(float(terms.objective) - penalty)
+
+
+@contextmanager
+def eased(functional: Functional) -> Iterator[None]:
+    """The functional at EASE·λ inside the block (:func:`needs_easing`)."""
+    weight = functional.penalty
+    functional.set_multipliers(None, EASE * weight)
+    try:
+        yield
+    finally:
+        functional.set_multipliers(None, weight)
 
 
 def penalty_error(rounds: list[Round]) -> float:

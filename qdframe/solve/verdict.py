@@ -11,7 +11,9 @@ import dataclasses
 import numpy as np
 
 from . import adaptive
+from . import optimum
 from ..descent import checks
+from ..descent.multipliers import after
 from ..certificates import switches
 from .continuation import interpolate
 from ..descent.loop import ProgressCallback, descend
@@ -46,14 +48,24 @@ def certify_result(functional: Functional, result: SolveResult, plan: Plan, prog
         used = history[-1].iteration
         budget = max(options.max_iter - used, 0) if own else COMPANION_ITERATIONS
         stage = dataclasses.replace(options, max_iter=budget)
-        shown = None if progress is None or not own else (
-            lambda record: progress(dataclasses.replace(record, iteration=record.iteration + used)))
         start, near = interpolate(target_functional, previous), previous.status == Status.SOLVED
         label, motion = starts.best(target_functional) if starts is not None else (MODEL, None)
         if label != MODEL and target_functional.objective(motion) < target_functional.objective(start):
             start, near = motion, False  # the model's motion sampled here is nearer than the last mesh's solution
-        out = descend(target_functional, solver if own else companion_solver, search if own else companion_search,
-                      stage, shown, start, near_solution=near)
+        chosen, line = (solver, search) if own else (companion_solver, companion_search)
+        first = None
+        if optimum.needs_easing(target_functional, start):  # a raised penalty far from its path: at EASE·λ first
+            with optimum.eased(target_functional):
+                first = descend(target_functional, chosen, line, stage, None, start, near_solution=near)
+            if first.status in (Status.SOLVED, Status.STATIONARY):
+                start = adaptive.iterate(target_functional, first)
+            stage = dataclasses.replace(stage, max_iter=max(budget - first.iterations, 0))
+        spent = used + (first.iterations if first is not None else 0)
+        shown = None if progress is None or not own else (
+            lambda record: progress(dataclasses.replace(record, iteration=record.iteration + spent)))
+        out = descend(target_functional, chosen, line, stage, shown, start, near_solution=near)
+        if first is not None:
+            out = after(first, out)
         if own:
             meshes.append((target_functional.grid.nodes, out.iterations))
             shrunk_to.append((out.descent.eps, out.descent.delta))
