@@ -247,7 +247,8 @@ class SolveResult:
     def to_dataframe(self) -> "pandas.DataFrame":
         """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
         per state (the model's state names), z as x1' …, then u and λ where the model has them
-        named as the model names them), then a cost's multipliers μ_x1 … (`multipliers`), with attrs model, status, T, free_T,
+        named as the model names them), then a cost's multipliers μ_x1 … (`multipliers`) and, per
+        bound side that binds somewhere, "binds u ≤ 1.5" (True on the points of `binding`), with attrs model, status, T, free_T,
         ``parameter_<name>`` and a cost's ``cost`` and ``cost_estimate``. Needs pandas: ``pip install 'qdframe[frames]'``."""
         pd = _optional("pandas", "to_dataframe")
         names = self._columns()
@@ -258,6 +259,9 @@ class SolveResult:
             labels = labels + [f"μ_{name}" for name in names["x"]]
         index = pd.Index(np.asarray(self.t, dtype=float), name="t")
         frame = pd.DataFrame(np.concatenate(blocks, axis=1), index=index, columns=labels)
+        t = np.asarray(self.t, dtype=float)
+        for side, runs in self.binding.items():  # a bound side that binds somewhere: True on its runs of points
+            frame[f"binds {side}"] = np.any([(t >= a) & (t <= b) for a, b in runs], axis=0)
         frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),
                             "free_T": int(self.T_found),
                             **{f"parameter_{name}": float(value) for name, value in self.parameters.items()},

@@ -119,6 +119,12 @@ def test_the_result_says_where_a_bound_binds():
     after = result.t[np.searchsorted(result.t, end, side="right")]  # the first point past the run
     assert start == pytest.approx(result.t[1]) and end <= 0.5 + 1e-6 < after + 2e-6
     assert "bounds binding           u ≤ 1.5 on [" in result.summary()
+    pytest.importorskip("pandas")
+    frame = result.to_dataframe()  # the same runs as a column: where u sits on its bound
+    binds = frame["binds u ≤ 1.5"].to_numpy()
+    assert binds.dtype == bool and np.array_equal(binds, (result.t >= start) & (result.t <= end))
+    assert np.all(np.abs(frame["u"].to_numpy()[binds] - 1.5) <= 1e-6)
+    assert [column for column in frame if column.startswith("binds")] == ["binds u ≤ 1.5"]  # u ≥ −1.5 never binds
 
 
 def test_the_unbounded_least_effort_exceeds_the_bound():
