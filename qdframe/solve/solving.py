@@ -156,13 +156,15 @@ def _with_unknowns(model: InclusionModel, chosen: Plan, progress: ProgressCallba
     if chosen.mesh is not None and model.free_T:  # the mesh on s = t/T
         chosen = dataclasses.replace(chosen, mesh=tuple(np.asarray(chosen.mesh) / model.T))
     # a period has several candidates (each half-period where a velocity alone is periodic): where
-    # the solve from the nearest does not end solved, the next ones are tried (PERIOD_CANDIDATES)
+    # the solve from the nearest does not end solved, the next ones are tried (PERIOD_CANDIDATES),
+    # each with T ≥ PERIOD_FLOOR of it where there are several (a stalled try is not drawn to T → 0;
+    # a single one may be the trivial period itself, which the message then names: unwrap.SHRUNK)
     tries = candidates[:PERIOD_CANDIDATES] if wrapper.periodic else candidates[:1]
     first = None
     for T0 in tries:
         wrapper = unknowns.Unknowns(model)
         wrapper.T0 = T0
-        if wrapper.periodic and len(candidates) > 1 and wrapper.time_bound.lo < PERIOD_FLOOR * T0:
+        if len(tries) > 1 and wrapper.time_bound.lo < PERIOD_FLOOR * T0:
             wrapper.time_bound = unknowns.Bound(PERIOD_FLOOR * T0, wrapper.time_bound.hi)
         result = unwrap(wrapper, _solve(wrapper, chosen, progress, time.perf_counter()))
         if result.status == Status.SOLVED:
