@@ -262,7 +262,7 @@ class SolveResult:
         t = np.asarray(self.t, dtype=float)
         for side, runs in self.binding.items():  # a bound side that binds somewhere: True on its runs of points
             frame[f"binds {side}"] = np.any([(t >= a) & (t <= b) for a, b in runs], axis=0)
-        frame.attrs.update({"model": self.model, "status": self.status, "T": float(self.T),
+        frame.attrs.update({"model": self.model, "status": str(Status(self.status).value), "T": float(self.T),
                             "free_T": int(self.T_found),
                             **{f"parameter_{name}": float(value) for name, value in self.parameters.items()},
                             **{name: float(value) for name, value in (("cost", self.cost),
@@ -289,7 +289,7 @@ class SolveResult:
             variables["selections"] = (("t", "selection"), np.asarray(self.selections))
             coords["selection"] = names["selections"]
         attrs: dict[str, Any] = {"model": self.model, "direction": self.direction, "line_search": self.line_search,
-                                 "status": self.status, "message": self.message, "nodes": int(self.nodes),
+                                 "status": str(Status(self.status).value), "message": self.message, "nodes": int(self.nodes),
                                  "T": float(self.T), "iterations": int(self.iterations), "I": float(self.I),
                                  "objective": float(self.objective), "free_T": int(self.T_found)}
         attrs.update({f"parameter_{name}": float(value) for name, value in self.parameters.items()})

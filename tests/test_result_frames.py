@@ -93,6 +93,7 @@ def test_dataset_has_t_state_names_and_attrs(masses):
     assert np.array_equal(ds["selections"].sel(selection="0.3 Sgn(x5)").values, masses.selections[:, 1])
     attrs = ds.attrs
     assert (attrs["model"], attrs["status"], attrs["nodes"]) == ("paper-7.3", masses.status, 11)
+    assert type(attrs["status"]) is str and type(masses.to_dataframe().attrs["status"]) is str  # not the enum
     assert attrs["I"] == masses.I and attrs["residual_surface"] == masses.surface_error
     assert attrs["residual_selection"] == masses.selection_residual
     assert all(isinstance(value, (str, int, float)) for value in attrs.values())  # netCDF-ready
