@@ -153,6 +153,33 @@ def test_a_fresh_round_starts_from_the_straight_line_between_the_given_ends():
     assert result.solved and abs(result.T - np.sqrt(40 / 3)) <= 1e-6
 
 
+def test_a_raised_penalty_far_from_its_path_is_eased_first():
+    """needs_easing: a penalty above the multipliers' cap whose start has λ·I above its cost (the
+    refinement's move from implicit Euler onto radau-iia: λ·I = 7.6e8 at λ = 3.5e9) is first solved
+    at EASE·λ; not at the model's own λ, nor at the multipliers' cap, nor from a start whose λ·I
+    is below its cost. eased() sets EASE·λ inside its block and gives λ back."""
+    from qdframe.unknowns import Unknowns
+
+    def functional_at(weight: float) -> Functional:
+        model = optimum.penalized(BlockTimeOptimal(end_values=(5.0, 0.0)), weight, None)
+        return Functional(Unknowns(model), Grid(1.0, 41, "radau-iia"))
+
+    functional = functional_at(3.5e9)
+    far = functional.initial_point()  # the straight line: λ·I ≫ T
+    assert 3.5e9 * functional.terms(far).I > 1e3
+    assert optimum.needs_easing(functional, far)
+    with optimum.eased(functional):
+        assert functional.penalty == pytest.approx(optimum.EASE * 3.5e9)
+    assert functional.penalty == 3.5e9
+    assert not optimum.needs_easing(functional_at(1.0), far)  # the model's own λ: the cost may win there
+    assert not optimum.needs_easing(functional_at(multipliers.PENALTY_CAP), far)
+    with functional.without_cost():  # the same start made a solution of the constraints (λ·I ≈ 0)
+        found = descend(functional, qdframe.registry.make_direction("gauss-newton"), make_line_search("armijo"),
+                        DescentOptions(max_iter=300), None, far)
+    near = multipliers.iterate(functional, found)
+    assert found.status == Status.SOLVED and not optimum.needs_easing(functional, near)
+
+
 def _fastest_move(distance: float, force: float) -> SetModel:
     """Issue 53's fastest rest-to-rest move: p' = v, v' ∈ [−U, U] − Sgn(v), from rest at 0 to
     rest at D, T free from the guess 4, cost ∫1."""
