@@ -67,19 +67,30 @@ def violation(residuals: Shifts) -> float:
     return max((float(np.max(part)) for part in parts if part.size), default=0.0)
 
 
-def gap(functional: Functional, residuals: Shifts) -> float:
-    """|yᵀr| at the functional's λ and shifts: the multipliers y = λ·w·(r + s) (resp.
-    λ·w·max(0, ℓ + s)) against the residuals; without shifts 2λ·I, the penalty's gap."""
+def _weighted_multipliers(functional: Functional, residuals: Shifts) -> Shifts:
+    """y/λ of every residual of I at the functional's shifts: w·(r + s) of an equation,
+    w·max(0, ℓ + s) of a side (the end conditions unweighted), in the residuals' layout."""
     s = functional.shifts if functional.shifts is not None else residuals.cleared()
     w = functional.grid.weights
     sides = residuals.blocks + s.blocks
     shifted = np.where(s.point[None, :, None], sides, np.maximum(sides, 0.0))
-    total = float(np.sum(w[:, None] * (residuals.consistency + s.consistency) * residuals.consistency))
-    total += float(np.sum((residuals.end + s.end) * residuals.end))
-    total += float(np.sum(w[:, None] * (residuals.surface + s.surface) * residuals.surface))
-    total += float(np.sum(w[:, None, None] * shifted * residuals.blocks))
-    total += float(np.sum(w[:, None] * (residuals.selections + s.selections) * residuals.selections))
-    total += float(np.sum(w[:, None] * np.maximum(residuals.bounds + s.bounds, 0.0) * residuals.bounds))
+    return dataclasses.replace(
+        residuals, consistency=w[:, None] * (residuals.consistency + s.consistency), end=residuals.end + s.end,
+        surface=w[:, None] * (residuals.surface + s.surface), blocks=w[:, None, None] * shifted,
+        selections=w[:, None] * (residuals.selections + s.selections),
+        bounds=w[:, None] * np.maximum(residuals.bounds + s.bounds, 0.0))
+
+
+def gap(functional: Functional, residuals: Shifts) -> float:
+    """|yᵀr| at the functional's λ and shifts: the multipliers y = λ·w·(r + s) (resp.
+    λ·w·max(0, ℓ + s)) against the residuals; without shifts 2λ·I, the penalty's gap."""
+    y = _weighted_multipliers(functional, residuals)
+    total = float(np.sum(y.consistency * residuals.consistency))
+    total += float(np.sum(y.end * residuals.end))
+    total += float(np.sum(y.surface * residuals.surface))
+    total += float(np.sum(y.blocks * residuals.blocks))
+    total += float(np.sum(y.selections * residuals.selections))
+    total += float(np.sum(y.bounds * residuals.bounds))
     return abs(functional.penalty * total)
 
 
@@ -89,20 +100,14 @@ def tolerance_share(functional: Functional, xi: np.ndarray, residual_tol: float)
     of z for a velocity's set, 1 for a selection): how far the least cost can move while every
     check passes, to first order (the least cost's sensitivity to a constraint's right-hand side
     is its multiplier)."""
-    residuals = functional.constraint_residuals(xi)
     x, z = functional.split(xi)
     tol_x = residual_tol * max(1.0, float(np.max(np.abs(x))))
     tol_z = residual_tol * max(1.0, float(np.max(np.abs(z), initial=0.0)))
-    s = functional.shifts if functional.shifts is not None else residuals.cleared()
-    w = functional.grid.weights[:, None]
-    sides = residuals.blocks + s.blocks
-    shifted = np.where(s.point[None, :, None], sides, np.maximum(sides, 0.0))
-    total = tol_x * (float(np.sum(np.abs(w * (residuals.consistency + s.consistency))))
-                     + float(np.sum(np.abs(residuals.end + s.end)))
-                     + float(np.sum(np.abs(w * (residuals.surface + s.surface))))
-                     + float(np.sum(w * np.maximum(residuals.bounds + s.bounds, 0.0))))
-    total += tol_z * float(np.sum(np.abs(w[:, :, None] * shifted)))
-    total += residual_tol * float(np.sum(np.abs(w * (residuals.selections + s.selections))))
+    y = _weighted_multipliers(functional, functional.constraint_residuals(xi))
+    total = tol_x * (float(np.sum(np.abs(y.consistency))) + float(np.sum(np.abs(y.end)))
+                     + float(np.sum(np.abs(y.surface))) + float(np.sum(y.bounds)))
+    total += tol_z * float(np.sum(np.abs(y.blocks)))
+    total += residual_tol * float(np.sum(np.abs(y.selections)))
     return functional.penalty * total
 
 
