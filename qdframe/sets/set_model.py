@@ -108,6 +108,11 @@ class SetModel(InclusionModel):
                                      "(from sympy import sin, cos, exp; Abs, Min, Max, sqrt from qdframe.sets): "
                                      "NumPy's and math's functions take numbers, not symbols",
                                      f"{type(exc).__name__}: {exc}") from exc
+            if not isinstance(sets, Mapping):  # one set returned bare: whose state's is it?
+                names = ", ".join(map(str, states[: len(cls.state_names)]))
+                raise InputError(f"{cls.__name__}.sets()", "a dict from each state, or a tuple of states for a "
+                                 f"set in several ({{(x1, x2): Ball(...)}}), to its set or formula, over ({names})",
+                                 type(sets).__name__)
             with plugin_code(self, "surface_equations()"):
                 surface = self.surface_equations(*args)
             with plugin_code(self, "running_cost()"):

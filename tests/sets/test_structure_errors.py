@@ -5,7 +5,7 @@ import pytest
 import sympy as sp
 
 import qdframe
-from qdframe.sets import Abs, Ball, Interval, Max, Point, SetStructureError, Sgn, compile_sets, hull, intersection
+from qdframe.sets import Abs, Ball, Interval, Max, Point, SetModel, SetStructureError, Sgn, compile_sets, hull, intersection
 
 x1, x2, x3, u = sp.symbols("x1 x2 x3 u", real=True)
 
@@ -49,3 +49,21 @@ def test_model_level_errors_name_the_model_and_the_block():
         compile_sets({x1: 1}, (x1,), (u,), surface=u)
     with pytest.raises(SetStructureError, match="amplitude"):
         compile_sets({x1: (Abs(x1) - Abs(u)) * Sgn(x1)}, (x1,), (u,))
+
+
+def test_a_set_returned_without_its_states_is_a_one_line_input_error():
+    """sets() returning the lens itself, not {(x1, x2): lens}: the error names the method, the form
+    it expects and the states (it was an AttributeError from inside the compiler)."""
+
+    class Lens(SetModel):
+        state_names = "x1 x2"
+        default_x0 = (0.0, 0.0)
+        default_T = 1.0
+
+        def sets(self, x1, x2):
+            return Ball((0, -1), 1.5) & Ball((0, 1), 1.5)
+
+    with pytest.raises(qdframe.InputError) as caught:
+        Lens()
+    message = str(caught.value)
+    assert message.startswith("Lens.sets(): expected a dict") and "(x1, x2)" in message and "\n" not in message
