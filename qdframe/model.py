@@ -138,6 +138,10 @@ class SignTerm:
     sense·a(y)·λ_j with λ ∈ Sgn(s) ⊂ B the switch's selection vector. Its band (for
     ``signs="band"`` and the band start) is the interval [w·s_j/|s| − (1 − w), w·s_j/|s| + (1 − w)],
     w = S(min(|s|/β, 1)): the whole [−1, 1] at s = 0, s_j/|s| for |s| ≥ β, C¹ in s.
+
+    `written` (±1) relates the selection to the term as the model wrote it (its `name`):
+    −0.3·Sgn(v) is stored as 0.3·Sgn(−v), whose selection is −1 where v > 0, and `written` −1
+    makes the result's frames show +1, the λ ∈ Sgn(v) of the name.
     """
 
     amplitude: float | tuple[Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], ...]
@@ -146,6 +150,7 @@ class SignTerm:
     name: str = "sgn"
     sense: float = 1.0
     component: int | None = None  # j of a BallSwitch's λ (None for a scalar switch)
+    written: float = 1.0  # λ of the Sgn(s) in `name`, as written, over the selection λ ∈ Sgn(switch): ±1
 
     @property
     def ball(self) -> BallSwitch | None:

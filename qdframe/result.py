@@ -148,6 +148,7 @@ class SolveResult:
     descent: DescentRecord
     history: list[IterationRecord] = field(default_factory=list)
     control_names: tuple[str, ...] = ()  # the model's names of the columns of u
+    selection_written: tuple[float, ...] = ()  # per selection column: ±1 from λ ∈ Sgn(s) to its name's Sgn as written
     checks: dict[str, dict[str, float]] = field(default_factory=dict)  # name -> {"value", "tol"}: qdframe.descent.checks
     binding_check: str = ""  # the check with the largest value/tol
     error_estimate: float | None = None  # estimate of max_k |x(t_k) − x*(t_k)| (qdframe.certificates.estimates); None: none made
@@ -244,6 +245,16 @@ class SolveResult:
                 taken.add(names[k])
         return parts
 
+    def _written_selections(self) -> np.ndarray | None:
+        """The selections as the frames show them: each column the λ of the Sgn(s) its name writes
+        (`selections` holds the λ of the switch a term is stored on: u − 0.3·Sgn(v) is kept as
+        0.3·Sgn(−v), whose λ is −1 where v > 0; its column "-0.3·Sgn(v)" reads +1 there)."""
+        if self.selections is None:
+            return None
+        lam = np.asarray(self.selections, dtype=float)
+        written = np.asarray(self.selection_written, dtype=float)
+        return lam * written if written.size == lam.shape[1] else lam
+
     def to_dataframe(self) -> "pandas.DataFrame":
         """x, z, u and the selections λ per node as a pandas DataFrame indexed by t: a column
         per state (the model's state names), z as x1' …, then u and λ where the model has them
@@ -252,7 +263,7 @@ class SolveResult:
         ``parameter_<name>`` and a cost's ``cost`` and ``cost_estimate``. Needs pandas: ``pip install 'qdframe[frames]'``."""
         pd = _optional("pandas", "to_dataframe")
         names = self._columns()
-        blocks = [self.x, self.z] + [part for part in (self.u, self.selections) if part is not None]
+        blocks = [self.x, self.z] + [part for part in (self.u, self._written_selections()) if part is not None]
         labels = names["x"] + names["z"] + names["u"] + names["selections"]
         if self.multipliers is not None:  # a cost's: the multipliers μ of x' = f, "μ_x1", …
             blocks.append(np.asarray(self.multipliers, dtype=float))
@@ -286,7 +297,7 @@ class SolveResult:
             variables["u"] = (("t", "control"), np.asarray(self.u))
             coords["control"] = names["u"]
         if self.selections is not None:
-            variables["selections"] = (("t", "selection"), np.asarray(self.selections))
+            variables["selections"] = (("t", "selection"), self._written_selections())
             coords["selection"] = names["selections"]
         attrs: dict[str, Any] = {"model": self.model, "direction": self.direction, "line_search": self.line_search,
                                  "status": str(Status(self.status).value), "message": self.message, "nodes": int(self.nodes),

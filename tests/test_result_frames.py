@@ -137,3 +137,33 @@ def test_a_results_records_are_typed_frozen_and_its_options_their_fields():
     assert json.loads(result.to_json())["options"] == json.loads(json.dumps(result.options))
     result.options["start"] = "changed"  # a copy: the records are the result's own
     assert result.grids.start != "changed"
+
+
+def test_a_selection_column_reads_the_sign_its_name_writes():
+    """u − 0.3·Sgn(v) is stored as 0.3·Sgn(−v), whose selection is −1 where v > 0: the column named
+    "-0.3·Sgn(v)" shows the λ of Sgn(v) as written (+1 there), in the DataFrame and the Dataset alike,
+    and a term written 0.3·Sgn(−v) shows its own (−1); `selections` keeps the stored λ."""
+    pytest.importorskip("pandas")
+    pytest.importorskip("xarray")
+    from qdframe.sets import SetModel, Sgn
+
+    def thrown(field):
+        class Thrown(SetModel):
+            state_names = "p v"
+            default_x0 = (0.0, 1.0)
+            default_T = 1.0
+
+            def sets(self, p, v):
+                return {p: v, v: field(v)}
+
+        return qdframe.solve(Thrown(), nodes=11)
+
+    for field, name, shown in ((lambda v: -0.3 * Sgn(v), "-0.3·Sgn(v)", 1.0),
+                               (lambda v: 0.3 * Sgn(-v), "0.3·Sgn(-v)", -1.0)):
+        result = thrown(field)
+        moving = np.asarray(result.x)[:, 1] > 0.1
+        frame = result.to_dataframe()
+        assert list(frame.columns)[-1] == name
+        assert np.all(frame[name].to_numpy()[moving] == shown)
+        assert np.all(result.to_xarray()["selections"].values[moving, 0] == shown)
+        assert np.all(np.asarray(result.selections)[moving, 0] == -1.0)  # the stored Sgn(−v)'s

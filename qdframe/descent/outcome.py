@@ -115,6 +115,7 @@ def result_of(functional: Functional, solver: DirectionSolver, search: LineSearc
         u=functional.controls(xi) if functional.m else None,
         selections=functional.selections(xi) if functional.p else None,
         selection_names=list(functional.selection_names),
+        selection_written=tuple(functional.selection_written),
         state_names=tuple(model.state_names),
         control_names=tuple(model.control_names),
         set_bounds=bounds,

@@ -54,6 +54,7 @@ class Layout:
     selection_groups: list[SelectionGroup]
     selection_terms: list[tuple[int, SignTerm]]  # per λ column: the (block, term) of its switch
     selection_names: list[str]  # per λ column (a vector sign's: name[0], name[1], …)
+    selection_written: list[float]  # per λ column: the λ of the Sgn(s) its name writes over the column's, ±1
     balls: list[tuple[int, int]]  # (first column, width) of every vector sign's λ ∈ B
     start_given: np.ndarray  # (n,) x_i(0) = x0_i given; NaN in x0: free
     resolved: dict[int, int]  # z_i ≡ x_j: z_i is not an unknown
@@ -81,6 +82,8 @@ class Layout:
             self.sign_columns.append(first[id(term.switch)] + (term.component or 0))
         self.selection_terms = [(group.block, group.term) for group in self.selection_groups for _ in range(group.width)]
         self.selection_names = [name for group in self.selection_groups for name in group.names]
+        self.selection_written = [group.term.written if group.width == 1 else 1.0 for group in self.selection_groups
+                                  for _ in range(group.width)]
         self.balls = [(group.first, group.width) for group in self.selection_groups if group.width > 1]
         self.p = len(self.selection_terms)
         self.dim = 2 * self.n + self.m + self.p

@@ -280,18 +280,20 @@ def _sign_term(label: str, amplitude: sp.Expr, switch: sp.Expr, band: float, swi
             maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
             value = tuple(_scalar_pieces(group, switches.symbols) for group in maxes)
         return SignTerm(value, ball, band, name, sense, component)
+    negated = 1.0
     if amplitude.is_number:
         a = float(amplitude)
         value: float | tuple = abs(a)
-        switch = switch if a >= 0 else -switch
+        switch, negated = (switch, 1.0) if a >= 0 else (-switch, -1.0)
     else:
         terms = sp.Add.make_args(sp.expand(amplitude, deep=False))
         if all(t.as_coeff_Mul()[0] < 0 for t in terms):  # −a·Sgn(s) = a·Sgn(−s)
-            amplitude, switch = -amplitude, -switch
+            amplitude, switch, negated = -amplitude, -switch, -1.0
         maxes, _ = _scalar_groups(amplitude, f"{where}: amplitude of {label}", allow_min=False)
         value = tuple(_scalar_pieces(group, switches.symbols) for group in maxes)
     callable_, sense = switches.find(switch)
-    return SignTerm(value, callable_, band, name, sense)
+    # sense·|a|·Sgn(s0) = a·Sgn(s) as written: the written Sgn(s)'s λ is negated·sense times the selection's
+    return SignTerm(value, callable_, band, name, sense, written=negated * sense)
 
 
 def compile_sets(
