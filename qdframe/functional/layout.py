@@ -82,8 +82,7 @@ class Layout:
             self.sign_columns.append(first[id(term.switch)] + (term.component or 0))
         self.selection_terms = [(group.block, group.term) for group in self.selection_groups for _ in range(group.width)]
         self.selection_names = [name for group in self.selection_groups for name in group.names]
-        self.selection_written = [group.term.written if group.width == 1 else 1.0 for group in self.selection_groups
-                                  for _ in range(group.width)]
+        self.selection_written = [group.term.written for group in self.selection_groups for _ in range(group.width)]
         self.balls = [(group.first, group.width) for group in self.selection_groups if group.width > 1]
         self.p = len(self.selection_terms)
         self.dim = 2 * self.n + self.m + self.p
