@@ -1,15 +1,18 @@
-"""Optimal control with friction: a least effort under a bound, and a terminal cost
-(docs/guide.md, "Optimal control").
+"""Optimal control with friction: a least effort under a control bound, the same under a speed
+limit, and a terminal cost (docs/guide.md, "Optimal control").
 
     p' = v,   v' ∈ u − 0.5·Sgn(v),   x(0) = (0, 0),   x(2) = (1, 0),   |u| ≤ 1.5,   minimize ∫u² dt
 
 A block under Coulomb friction pushed from rest at 0 to rest at 1. While it moves forward the
 friction is the constant −0.5, so Pontryagin's principle gives u* = clip(α − βt, −1.5, 1.5):
 the bound binds on [0, 1/2], and J* = 37/18 (qdframe/models/optimal_references.py derives it).
-The second problem has no end values but a terminal cost: the double integrator from rest,
+The second replaces the control bound by a speed limit, a state bound v ≤ 0.6 that binds on
+[1/2, 3/2] (the unbounded optimum peaks at 0.75): u* = 0.5 + 4.8·(1/2 − t) up to 1/2, 0.5 on the
+limit, and J* = 2.42 (`least_effort_speed_bounded` there).
+The third has no end values but a terminal cost: the double integrator from rest,
 minimize ∫u² dt + 50·((p(1) − 2)² + v(1)²), J* = 850/23 (by the controllability Gramian).
 
-Both are solved by the method of multipliers (docs/method.md, "Optimal control"): the
+All three are solved by the method of multipliers (docs/method.md, "Optimal control"): the
 inclusion's residuals are the constraints, λ stays at most 1e6. Prints each cost against
 its exact value and its own estimate of the distance (`result.cost_estimate`), and exits
 non-zero where one misses what `solved` promises.
@@ -42,6 +45,13 @@ class BoundedPush(SetModel):
         return u**2
 
 
+class SpeedLimit(BoundedPush):
+    """The same push with u free and the speed held to v ≤ 0.6 (a path constraint)."""
+
+    control_bounds = {}
+    state_bounds = {"v": (-np.inf, 0.6)}
+
+
 class Aim(SetModel):
     """The double integrator from rest: ∫u² dt + 50·((p(1) − 2)² + v(1)²), no end values."""
 
@@ -61,7 +71,7 @@ class Aim(SetModel):
 
 def main() -> None:
     failures = []
-    for model, exact in ((BoundedPush(), 37 / 18), (Aim(), 850 / 23)):
+    for model, exact in ((BoundedPush(), 37 / 18), (SpeedLimit(), 2.42), (Aim(), 850 / 23)):
         result = qdframe.solve(model)
         u = np.asarray(result.u)[1:, 0]  # (the first point's u is not in Radau IIA's rule)
         print(f"{type(model).__name__}: {result.status}, J = {result.cost:.10f} (exact {exact:.10f}, "

@@ -82,7 +82,7 @@ class PenaltyRecord:
     penalty: float
     optimality_gap: float
     penalty_rounds: tuple[tuple[float, int], ...]
-    newton_step: float = 0.0  # max |x-part of the Newton step| where a descent stopped short of its optimum
+    newton_step: float = 0.0  # max |x-part| of the Newton step where a descent stopped short of its optimum, or of a restoration's move
     tolerance_share: float = 0.0  # Σ|y|·tol: how far the least cost moves within the checks' tolerances (multipliers)
 
 

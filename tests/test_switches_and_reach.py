@@ -106,3 +106,29 @@ def test_a_simulation_supports_the_claim_for_deterministic_dynamics():
 ])
 def test_the_value_reached_has_the_digits_its_gap_needs(value, gap, text):
     assert _number(value, gap) == text
+
+
+def test_a_pin_counts_as_misplaced_only_beside_a_switch_it_holds():
+    """misplaced_switches (the bisection estimate's term for pins both solves share): a pin one mesh
+    interval from block-stop-stick's stop at t = 1 counts its distance to it; a pin where nothing
+    switches (t = 0.225, three quarters of the horizon's first third away) counts nothing, where it
+    had counted its distance to the stop (a state bound's junction, pinned on a coarse grid and not
+    located on the next, made the estimate 2.2 on an error of 3e-3)."""
+    from qdframe.certificates.estimates import misplaced_switches
+    from qdframe.functional import Functional
+    from qdframe.registry import load_model
+    from qdframe.schemes.grid import Grid
+
+    model = load_model("block-stop-stick")
+    tau = np.linspace(0.0, model.T, 41)
+    result = qdframe.solve(model, mesh=tau, scheme="radau-iia", estimate=False, continuation="none")
+    assert np.allclose(result.switch_times, [1.0], atol=1e-9)
+    jump = 2.0 * float(np.max(np.abs(result.z)))
+
+    def misplaced(*pins: float) -> float:
+        return misplaced_switches(Functional(model, Grid.from_mesh(tau, "radau-iia", switches=pins)), result)
+
+    assert misplaced() == 0.0
+    assert misplaced(0.225) == 0.0
+    assert misplaced(1.05) == pytest.approx(0.05 * jump, rel=1e-6)
+    assert misplaced(0.225, 1.05) == misplaced(1.05)

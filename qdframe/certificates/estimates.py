@@ -73,6 +73,7 @@ from .switches import bound_times, switch_times
 
 BISECTION, REPLAY = "bisection", "replay"
 CERTIFICATES = (BISECTION, REPLAY)
+CLAIM_REACH = 2.0  # a pin holds the switch located within this many of its mesh intervals (misplaced_switches)
 ESTIMATE_FACTOR = 2.5  # 2^p/(2^p − 1) ≤ 2 for every order p ≥ 1, with a quarter's margin
 ROUNDING = 64 * np.finfo(float).eps  # relative: the estimate never claims less than rounding (its reference's too)
 REPLAY_TOL = 1e-11  # DOP853's rtol and atol in the replay
@@ -192,18 +193,28 @@ def misplaced_switches(functional: Functional, result: SolveResult) -> float:
     """What pinned switches that are not where the solution switches can move it by, which a
     solve on the bisected mesh, pinned at the same points, cannot see: the largest distance
     between a pinned time and the located one, times the largest jump the velocity can make
-    (2·max|z|). Zero where the mesh has no pins or the switches have settled on them."""
+    (2·max|z|). Zero where the mesh has no pins or the switches have settled on them, and for a
+    pin with no switch located within CLAIM_REACH mesh intervals of it (the switch it was put on
+    has moved away or gone: where the solution switches now, no pin is shared, and the solve on
+    the bisected mesh sees it)."""
     pins = np.asarray(functional.grid.switches, dtype=float)
     if not pins.size:
         return 0.0
     xi = functional.pack(result.x, result.z, result.u, result.selections)
     jumps = switch_times(functional, xi, crossings=True, merge=False, bounds=False)
-    kinks = bound_times(functional, xi)
+    kinks = bound_times(functional, xi, states=False)
     if jumps.size + kinks.size == 0:
         return 0.0
     located = np.concatenate([jumps, kinks])
     nearest = np.argmin(np.abs(pins[:, None] - located[None, :]), axis=1)
     distance = np.abs(pins - located[nearest])
+    # a pin with no switch located within CLAIM_REACH of the mesh intervals beside it holds none:
+    # the solution is smooth there, and a mesh point where nothing happens moves nothing
+    tau = functional.grid.mesh_times
+    h = np.diff(tau)
+    at = np.clip(np.searchsorted(tau, pins), 1, h.size)  # the interval to the pin's right is `at`, to its left at − 1
+    beside = np.maximum(h[at - 1], h[np.minimum(at, h.size - 1)])
+    distance = np.where(distance <= CLAIM_REACH * beside, distance, 0.0)
     kink = nearest >= jumps.size
     # a velocity jump misplaced by d moves x by d·(the jump); a bound's kink (z continuous, its slope
     # jumps) by d²·(the jump of the slope), here at most 2·max|z'| (z's differences over the mesh)

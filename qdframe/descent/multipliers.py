@@ -48,6 +48,8 @@ MAX_ROUNDS = 40
 STEP_TOL = 1e-7  # relative to max(1, max|x|): a Newton step this small (1/10 of the default target) ends a descent
 GAP_TOL = 1e-7  # a tenth of the default accuracy asked of the cost, |J − J*| ≤ 1e-6·max(1, |J|)
 WARM_SHARE = 0.1
+RESTORE_STEPS = 5  # a restoration's iterations (Gauss–Newton on I alone from a point infeasible by ~tol) …
+RESTORE_REACH = 10.0  # … tried where the violation is at most this × what the checks allow
 
 
 def applies(functional: Functional, solver: DirectionSolver) -> bool:
@@ -196,11 +198,15 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
     step (the decrease the moved shifts ask for is below the objective's rounding, which the
     cost's size sets), the Newton step is taken whole where it lowers the violation; where a
     descent stops short of proving its optimum but the Newton step is below STEP_TOL, it is
-    solved (:func:`_optimal`). The functional keeps the last λ and shifts (a finer grid's
-    functional takes them: :meth:`Functional.take_multipliers`)."""
+    solved (:func:`_optimal`); where the gap is met, the violation within RESTORE_REACH of the
+    checks and the rounds barely cut it, the nearest solution is tried (:func:`_restored`: how far
+    it moves x joins the Newton step's in the estimate). A round that leaves the iterate where it
+    was raises λ ×100, or at PENALTY_CAP ends the rounds. The functional keeps the last λ and shifts
+    (a finer grid's functional takes them: :meth:`Functional.take_multipliers`)."""
     result = first
-    last_violation, count, move = np.inf, 0, None
+    last_violation, count, move, restored_gap, restored_move = np.inf, 0, None, 0.0, 0.0
     spent = [(functional.penalty, first.iterations)]  # (λ, iterations) of each round, the first's with the solution's
+    previous = None  # the iterate the last round started from
     while True:
         xi = iterate(functional, result)
         residuals = functional.constraint_residuals(xi)
@@ -210,12 +216,19 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         move = _optimal(functional, solver, options, xi) if result.status != Status.SOLVED and close else None
         if move is not None:
             result.status, result.reason, result.remarks = Status.SOLVED, "", []
+        stuck = previous is not None and np.array_equal(xi, previous)  # the last round did not move it
+        slow = stuck or (count and now > FEASIBLE_RATE * last_violation)  # the rounds barely cut the violation
+        if result.status != Status.SOLVED and close and slow and now <= RESTORE_REACH * _tolerance_x(options, xi, functional.n):
+            restored = _restored(functional, options, once, xi, result, budget - result.iterations)
+            if restored is not None:  # the multipliers' optimum made feasible: its gap and the move count on
+                shift = iterate(functional, restored)[:, : functional.n] - xi[:, : functional.n]
+                result, restored_gap, restored_move = restored, distance, float(np.max(np.abs(shift)))
+                continue
         if result.status == Status.SOLVED and close:
             break
         used = result.iterations
         if count and result.status not in (Status.SOLVED, Status.STATIONARY):
             break  # the descent's own limit (its budget, a failed step), not the multipliers, ended it
-        stuck = count and result.iterations == 0
         if count >= MAX_ROUNDS or used >= budget or (stuck and functional.penalty >= PENALTY_CAP):
             result.remarks.append(f"the multipliers' rounds stopped after {count} at λ = {functional.penalty:.0e}: "
                                   f"violation {now:.1e}, gap |yᵀr| {distance:.1e}")
@@ -229,7 +242,7 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         base = functional.shifts if functional.shifts is not None else residuals.cleared()
         moved = base.moved(residuals) if warm else residuals.cleared()
         functional.set_multipliers(moved.scaled(functional.penalty / weight), weight)
-        earlier = result
+        earlier, previous = result, xi
         result = once(xi if warm else start, budget - used, True, False)
         if result.iterations == 0 and result.status != Status.SOLVED:
             step = _newton_step(functional, solver, options, xi)
@@ -241,9 +254,38 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         last_violation, count = now, count + 1
     xi = iterate(functional, result)
     share = tolerance_share(functional, xi, options.residual_tol)
-    result.penalty = PenaltyRecord(functional.penalty, distance, tuple(spent), move or 0.0, share)
+    result.penalty = PenaltyRecord(functional.penalty, max(distance, restored_gap), tuple(spent),
+                                   max(move or 0.0, restored_move), share)
     result.multipliers = costates(functional, xi)
     return result
+
+
+def _tolerance_x(options: DescentOptions, xi: np.ndarray, n: int) -> float:
+    """What the pointwise checks let a state's equation miss by: residual_tol·max(1, max|x|)."""
+    return options.residual_tol * max(1.0, float(np.max(np.abs(xi[:, :n]))))
+
+
+def _restored(functional: Functional, options: DescentOptions, once: Callable[..., SolveResult], xi: np.ndarray,
+              result: SolveResult, budget: int) -> SolveResult | None:
+    """Where the rounds barely cut the violation (a round that takes no step: the decrease the
+    moved shifts ask for is below what the descent resolves at the cost's size) at an iterate whose
+    gap already meets GAP_TOL but whose pointwise checks fail: the nearest solution of the constraints (a descent of I alone, the cost
+    and shifts off, at most RESTORE_STEPS iterations), taken `solved` where every check passes there
+    and its cost is within GAP_TOL·max(1, |𝒥|) of the iterate's (to first order the cost moves
+    by the multipliers against the residuals removed, yᵀr, which the gap bounds); None otherwise."""
+    if budget < 1 or result.cost is None:
+        return None
+    with functional.without_cost():
+        feasible = once(xi, min(RESTORE_STEPS, budget), True, False)
+    if feasible.status != Status.SOLVED:
+        return None
+    restored = after(result, after(feasible, once(iterate(functional, feasible), 0, True, False)))
+    if restored.cost is None or abs(restored.cost - result.cost) > GAP_TOL * max(1.0, abs(result.cost)) or \
+            restored.I > options.tol or checks.failures(checks.checks(functional, iterate(functional, restored),
+                                                                       options.residual_tol)):
+        return None
+    restored.status, restored.reason, restored.remarks = Status.SOLVED, "", []
+    return restored
 
 
 def costates(functional: Functional, xi: np.ndarray) -> np.ndarray | None:

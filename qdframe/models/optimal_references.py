@@ -19,7 +19,9 @@ these conditions are also sufficient: the references are the global optima.
 - `least_effort_bounded`: the same with |u| ≤ U, (α, β) root-found, the states exact piecewise
   polynomials;
 - `lq_terminal`: no friction, free end with a quadratic terminal penalty, closed form by the
-  controllability Gramian.
+  controllability Gramian;
+- `least_effort_speed_bounded`: `least_effort` with the state bound v ≤ V binding on a stretch
+  (:class:`SpeedBoundedReference`; its u is not of the clipped affine form).
 """
 
 from __future__ import annotations
@@ -169,3 +171,65 @@ def lq_terminal(T: float = 1.0, weight: float = 50.0, target: tuple[float, float
     nu = np.linalg.solve(gramian + np.eye(2) / weight, r)
     return OptimalReference(T=T, mu=0.0, alpha=float(nu[0] * T + nu[1]), beta=float(nu[0]), U=math.inf,
                             cost=float(r @ nu))
+
+
+@dataclass(frozen=True)
+class SpeedBoundedReference:
+    """The least effort from rest at 0 to rest at D in time T under v ≤ V, binding on [t1, T − t1]:
+    u = μ + a·(t1 − t) on [0, t1], μ on the bound, μ − a·(t − T + t1) on [T − t1, T], a = 2V/t1²."""
+
+    D: float
+    T: float
+    mu: float
+    V: float
+    t1: float
+    cost: float
+
+    @property
+    def switch_times(self) -> tuple[float, float]:
+        """Where the bound starts and stops binding (u's kinks; v is C¹ there)."""
+        return self.t1, self.T - self.t1
+
+    def control(self, t: ArrayLike) -> np.ndarray:
+        """u(t), shape (len(t),)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        a = 2 * self.V / self.t1**2
+        return self.mu + a * (np.maximum(self.t1 - t, 0.0) - np.maximum(t - (self.T - self.t1), 0.0))
+
+    def states(self, t: ArrayLike) -> np.ndarray:
+        """[p(t), v(t)], shape (len(t), 2): by symmetry, the last arc is the first reflected,
+        p(t) = D − p(T − t), v(t) = v(T − t)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        a, t1, V = 2 * self.V / self.t1**2, self.t1, self.V
+
+        def first(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # on [0, t1]
+            return a * (t1 * s**2 / 2 - s**3 / 6), a * (t1 * s - s**2 / 2)
+
+        p_rise, v_rise = first(np.minimum(t, t1))
+        p_fall, v_fall = first(np.clip(self.T - t, 0.0, t1))
+        held = p_rise + V * np.clip(t - t1, 0.0, self.T - 2 * t1)  # up to the bound's end
+        p = np.where(t <= self.T - t1, held, self.D - p_fall)
+        v = np.where(t <= t1, v_rise, np.where(t <= self.T - t1, V, v_fall))
+        return np.column_stack([p, v])
+
+
+def least_effort_speed_bounded(D: float = 1.0, T: float = 2.0, mu: float = 0.5,
+                               V: float = 0.6) -> SpeedBoundedReference:
+    """`least_effort` with the state bound v ≤ V where it binds: D/T < V < 3D/(2T) (the unbounded
+    optimum's top speed is 3D/(2T); a move of D in T needs an average D/T).
+
+    With w = u − μ the cost is μ²T + ∫w² (as in `least_effort`), the problem convex (a quadratic cost,
+    linear dynamics on the forward motion, a convex state constraint), so the conditions below are
+    sufficient. The bound is of first order (v' = u − μ holds u): on the boundary arc w = 0, and w is
+    affine off it (b affine, as for `least_effort`) and continuous at the junctions (the Hamiltonian is
+    strictly convex in u; Bryson & Ho, §3.11; Hartl, Sethi & Vickson, SIAM Review 37 (1995)), so
+    w = a·(t1 − t) on [0, t1] with v(t1) = a·t1²/2 = V, and the move's length D = VT − 2V·t1/3 gives
+    t1 = 3(T − D/V)/2 and J* = μ²T + 2a²t1³/3. Defaults: t1 = 1/2, a = 4.8, J* = 2.42 (2 unbounded)."""
+    _check_data(D, T, mu)
+    if not D / T < V < 1.5 * D / T:
+        raise ValueError(f"v <= {V} does not bind on a stretch of the move of D = {D} in T = {T}: need "
+                         f"{D / T:.6g} < V < {1.5 * D / T:.6g} (below, the move is impossible; above, the "
+                         "unbounded optimum never reaches V)")
+    t1 = 1.5 * (T - D / V)
+    a = 2 * V / t1**2
+    return SpeedBoundedReference(D=D, T=T, mu=mu, V=V, t1=t1, cost=mu**2 * T + 2 * a**2 * t1**3 / 3)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import cumulative_simpson, quad, solve_ivp
 
-from qdframe.models.optimal_references import least_effort, least_effort_bounded, lq_terminal
+from qdframe.models.optimal_references import least_effort, least_effort_bounded, least_effort_speed_bounded, lq_terminal
 
 TOL = 1e-9
 CASES = {
@@ -222,3 +222,42 @@ def test_the_bound_costs_more_the_tighter_it_is():
 def test_data_outside_the_forward_motion_are_refused(call):
     with pytest.raises(ValueError):
         call()
+
+
+@pytest.mark.parametrize("data", [dict(), dict(D=0.5, T=2.0, mu=0.2, V=0.3), dict(D=2.0, T=3.0, mu=0.0, V=0.9)])
+def test_the_speed_bounded_reference_is_its_integrated_motion_and_the_convex_programs_optimum(data):
+    """v ≤ V binding on [t1, T − t1]: the motion integrated from the reference control is its states,
+    ends at rest at D and keeps v ≤ V (= V on the stretch); its cost is the quadrature's; and it is the
+    limit of the convex program discretized independently (w = u − μ piecewise constant on 1000 steps,
+    v at the steps, p by the trapezoid rule; CVXPY), whose least ∫w² is within 1e-5 of μ²T's complement."""
+    cp = pytest.importorskip("cvxpy")
+    ref = least_effort_speed_bounded(**data)
+    grid = np.linspace(0, ref.T, 161)
+    kinks = [0.0, *ref.switch_times, ref.T]
+    x = np.array([0.0, 0.0])
+    for a, b in zip(kinks, kinks[1:]):  # the control is smooth between its kinks
+        sol = solve_ivp(lambda t, y: [y[1], ref.control(t)[0] - ref.mu], (a, b), x, method="DOP853",
+                        rtol=1e-12, atol=1e-12, dense_output=True)
+        inside = (grid >= a) & (grid <= b)
+        assert np.max(np.abs(sol.sol(grid[inside]).T - ref.states(grid[inside]))) < TOL
+        x = sol.y[:, -1]
+    assert np.allclose(x, [ref.D, 0.0], rtol=0, atol=TOL)
+    v = ref.states(grid)[:, 1]
+    held = (grid >= ref.t1) & (grid <= ref.T - ref.t1)
+    assert np.all(v <= ref.V + 1e-15) and np.allclose(v[held], ref.V, rtol=0, atol=1e-15) and np.all(v[1:-1] > 0)
+    cost = sum(quad(lambda t: ref.control(t)[0] ** 2, a, b, epsabs=1e-13)[0] for a, b in zip(kinks, kinks[1:]))
+    assert abs(cost - ref.cost) < 1e-11
+    steps = 1000
+    h = ref.T / steps
+    w, speed = cp.Variable(steps), cp.Variable(steps + 1)
+    program = cp.Problem(cp.Minimize(h * cp.sum_squares(w)),
+                         [speed[0] == 0, speed[1:] == speed[:-1] + h * w, speed[steps] == 0,
+                          h * cp.sum(speed[1:] + speed[:-1]) / 2 == ref.D, speed <= ref.V])
+    program.solve()
+    assert abs(program.value + ref.mu**2 * ref.T - ref.cost) < 1e-5 * ref.cost
+
+
+@pytest.mark.parametrize("V", [0.5, 0.75, 0.8])
+def test_a_speed_bound_that_does_not_bind_on_a_stretch_is_refused(V):
+    with pytest.raises(ValueError, match="does not bind"):
+        least_effort_speed_bounded(V=V)  # D/T = 0.5 and 3D/(2T) = 0.75 at the defaults
