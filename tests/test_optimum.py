@@ -232,3 +232,15 @@ def test_the_fastest_move_from_a_guess_of_4(distance, force):
     result = qdframe.solve(_fastest_move(distance, force))
     assert result.solved and abs(result.T - _shortest(distance, force)) <= 1e-6 * max(1.0, distance), (
         result.status, result.T)
+
+
+def test_a_round_that_shrank_T_to_0_is_compared_without_a_warning():
+    """The raised penalty's first round can end at T = 0 (the cost won); the penalty's error
+    compares each round with the one before at t = s·T, which divided by that T = 0 (a
+    RuntimeWarning from NumPy in the user's run): such a round is now infinitely far, quietly."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        result = qdframe.solve(_fastest_move(2.0, 3.0))
+    assert result.solved and abs(result.T - _shortest(2.0, 3.0)) <= 2e-6

@@ -184,8 +184,12 @@ def cost_estimate(result: SolveResult, finer: SolveResult | None) -> float | Non
 def observed_difference(model, grid: Grid, x: np.ndarray, other_grid: Grid, other: np.ndarray) -> np.ndarray:
     """What the user is given by `other` (on `other_grid`) minus what `x` (on `grid`) gives, at
     x's points: at the user's times (with a free T, t = s·T, each solution its own T) and in
-    the model's ``observed`` columns (x, then a T or parameters found), (N, ·)."""
-    times = grid.t * model.time_scale(x) / model.time_scale(other)
+    the model's ``observed`` columns (x, then a T or parameters found), (N, ·); inf where `other`'s
+    T is 0."""
+    scale = model.time_scale(other)
+    if not scale > 0:  # the other solve shrank T to 0 (a shortest time's first round): nothing to compare
+        return np.full_like(model.observed(x), np.inf)
+    times = grid.t * model.time_scale(x) / scale
     return model.observed(dense(other_grid, other, times)) - model.observed(x)
 
 

@@ -181,7 +181,7 @@ def penalty_error(rounds: list[Round]) -> float:
         return changes[-1] * before.weight / (last.weight - before.weight)
     # the multipliers' rounds converge linearly: what is left is the last change times ρ/(1 − ρ),
     # ρ the last two changes' ratio (at most 1/2; 1/2 where there is one change)
-    rate = min(changes[-1] / changes[0], 0.5) if len(changes) == 2 and changes[0] > 0 else 0.5
+    rate = min(changes[-1] / changes[0], 0.5) if len(changes) == 2 and 0 < changes[0] < np.inf else 0.5
     return changes[-1] * rate / (1.0 - rate)
 
 
