@@ -236,6 +236,34 @@ def test_a_binding_state_bound_is_certified_at_its_exact_optimum(distance, T, mu
     assert float(np.max(result.x[:, 1])) <= speed + 1e-8
 
 
+def test_a_position_bound_that_binds_at_the_end_is_certified_at_its_exact_optimum():
+    """lq-terminal (∫u² + 50·((p(1) − 2)² + v(1)²) from rest, v' = u) with p ≤ 1.5: unbounded, p(1) =
+    1.63, so the bound holds p(1) = 1.5, and the least cost from rest to (1.5, v) in T = 1 is
+    12p² − 12pv + 4v²: v(1) = 1/6, J* = 25.5 + 12.5 = 38, u = 26/3 − 17t, v > 0 on (0, 1] (p rises
+    to the bound only at T). A bound of second order (p'' = u) touching at the end."""
+    class Capped(SetModel):
+        state_names = "p v"
+        control_names = "u"
+        default_x0 = (0.0, 0.0)
+        state_bounds = {"p": (-np.inf, 1.5)}
+
+        def sets(self, p, v, u):
+            return {p: v, v: u}
+
+        def running_cost(self, p, v, u):
+            return u**2
+
+        def terminal_cost(self, p, v):
+            return 50 * ((p - 2) ** 2 + v**2)
+
+    result = qdframe.solve(Capped())
+    assert result.solved, result.message
+    assert abs(result.cost - 38.0) <= min(1e-6 * 38.0, result.cost_estimate)
+    t = result.t
+    exact = np.column_stack([26 / 6 * t**2 - 17 / 6 * t**3, 26 / 3 * t - 8.5 * t**2])
+    assert float(np.max(np.abs(result.x - exact))) <= result.error_estimate <= 1e-6 * float(np.max(np.abs(exact)))
+
+
 @pytest.mark.xfail(strict=True, reason="README, Known failures: nosnoc's motor with guide friction ends `max_iter` "
                                        "on the first grid (21 points, 500 iterations), x1(T) 1.8e-3 off, the "
                                        "friction's selection 1.2e-2 from Sgn(v1)")
