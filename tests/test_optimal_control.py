@@ -301,3 +301,37 @@ def test_a_backend_failure_outside_a_descent_is_no_step():
     from qdframe.descent.options import DescentOptions
 
     assert multipliers._newton_step(None, Failing(), DescentOptions(), np.zeros((3, 2))) is None
+
+
+def test_a_round_that_leaves_the_iterate_where_it_was_ends_the_rounds_at_the_cap():
+    """At PENALTY_CAP a round that does not move the iterate ends the rounds (with the remark
+    saying so): it had been read from the joined result's iterations, which count the earlier
+    rounds', so after any earlier step the rounds went on to MAX_ROUNDS, the shifts drifting."""
+    import copy
+
+    from qdframe.descent.loop import DescentOptions, descend
+    from qdframe.directions.gauss_newton import GaussNewton
+    from qdframe.functional import Functional
+    from qdframe.registry import make_line_search
+    from qdframe.schemes.grid import Grid
+    from qdframe.status import Status
+
+    model = load_model("least-effort-block")
+    functional = Functional(model, Grid(model.T, 21, "implicit-euler"))
+    solver, options = GaussNewton(), DescentOptions(max_iter=3)
+    first = descend(functional, solver, make_line_search("armijo"), options)
+    assert first.iterations > 0
+    functional.set_multipliers(None, multipliers.PENALTY_CAP)
+    calls = []
+
+    def once(xi, budget, near, watchdog=True):  # a round that takes no step (nor its Newton trial)
+        calls.append(budget)
+        same = copy.deepcopy(first)
+        same.history, same.status = same.history[:1], Status.STATIONARY
+        same.iterations = 0
+        return same
+
+    start = multipliers.iterate(functional, first)
+    result = multipliers.rounds(functional, solver, options, first, once, start, budget=100)
+    assert len(calls) <= 2, len(calls)  # the round's descent, and its whole Newton step's
+    assert "the multipliers' rounds stopped after 1" in " ".join(result.remarks)
