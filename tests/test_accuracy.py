@@ -75,6 +75,23 @@ def test_a_refined_mesh_keeps_every_point_and_refines_where_the_error_is():
     assert parts[1] == parts.max() > max(parts[0], parts[2]) and finer.size - 1 >= 1.25 * 3
 
 
+def test_a_refinement_that_gained_less_than_the_order_counts_points_by_the_gain():
+    """Where the last refinement cut the estimate as order 0.77 (sliding-mode-terminal's 151 → 265
+    points, 7.7e-6 → 5.0e-6), the next mesh's count follows that gain (floored at order 1), not the
+    scheme's order 3 (which asked for two more meshes); at the order it had gained, nothing changes."""
+    from qdframe.solve.adaptive import OBSERVED_FLOOR, observed_order, refine
+
+    assert observed_order([7.7e-6], [150]) is None
+    assert observed_order([7.7e-6, 5.0e-6], [75, 132]) == pytest.approx(np.log(7.7 / 5.0) / np.log(132 / 75))
+    grid = Grid(1.0, 201, "radau-iia")  # 100 intervals, the local error uniform
+    local = np.full(100, 1e-8)
+    as_promised = refine(grid, local, 1e-6, 4e-6).size - 1
+    as_gained = refine(grid, local, 1e-6, 4e-6, observed=0.77).size - 1
+    # at most 4× the intervals, as every refinement
+    assert as_gained > as_promised and as_gained >= min(400, 100 * (4e-6 / 0.85e-6) ** (1 / max(0.77, OBSERVED_FLOOR)))
+    assert refine(grid, local, 1e-6, 4e-6, observed=3.0).size - 1 == as_promised
+
+
 def test_a_free_input_refined_keeps_its_choices_jumps_on_points():
     """coulomb-rest-to-rest (a bounded force, the solutions a set) by the default call:
     with the old points kept, its refinement certifies on at most 400 points (801 when a
