@@ -77,8 +77,8 @@ def test_a_refined_mesh_keeps_every_point_and_refines_where_the_error_is():
 
 def test_a_refinement_that_gained_less_than_the_order_counts_points_by_the_gain():
     """Where the last refinement cut the estimate as order 0.77 (sliding-mode-terminal's 151 → 265
-    points, 7.7e-6 → 5.0e-6), the next mesh's count follows that gain (floored at order 1), not the
-    scheme's order 3 (which asked for two more meshes); at the order it had gained, nothing changes."""
+    points, 7.7e-6 → 5.0e-6), the next mesh's count is what first order asks, not the scheme's
+    order 3 (which asked for two more meshes); above first order nothing changes."""
     from qdframe.solve.adaptive import OBSERVED_FLOOR, observed_order, refine
 
     assert observed_order([7.7e-6], [150]) is None
@@ -89,7 +89,7 @@ def test_a_refinement_that_gained_less_than_the_order_counts_points_by_the_gain(
     as_gained = refine(grid, local, 1e-6, 4e-6, observed=0.77).size - 1
     # at most 4× the intervals, as every refinement
     assert as_gained > as_promised and as_gained >= min(400, 100 * (4e-6 / 0.85e-6) ** (1 / max(0.77, OBSERVED_FLOOR)))
-    assert refine(grid, local, 1e-6, 4e-6, observed=3.0).size - 1 == as_promised
+    assert refine(grid, local, 1e-6, 4e-6, observed=2.0).size - 1 == as_promised  # above first order: as before
 
 
 def test_a_free_input_refined_keeps_its_choices_jumps_on_points():
