@@ -241,26 +241,21 @@ def test_a_position_bound_that_binds_at_the_end_is_certified_at_its_exact_optimu
     1.63, so the bound holds p(1) = 1.5, and the least cost from rest to (1.5, v) in T = 1 is
     12p² − 12pv + 4v²: v(1) = 1/6, J* = 25.5 + 12.5 = 38, u = 26/3 − 17t, v > 0 on (0, 1] (p rises
     to the bound only at T). A bound of second order (p'' = u) touching at the end."""
-    class Capped(SetModel):
-        state_names = "p v"
-        control_names = "u"
-        default_x0 = (0.0, 0.0)
+    from qdframe.models.optimal_control import LQTerminal
+
+    class Capped(LQTerminal):
+        name = "lq-terminal-capped"
         state_bounds = {"p": (-np.inf, 1.5)}
+        exact_cost = 38.0
 
-        def sets(self, p, v, u):
-            return {p: v, v: u}
+        def exact_solution(self, t):
+            return np.column_stack([26 / 6 * t**2 - 17 / 6 * t**3, 26 / 3 * t - 8.5 * t**2])
 
-        def running_cost(self, p, v, u):
-            return u**2
-
-        def terminal_cost(self, p, v):
-            return 50 * ((p - 2) ** 2 + v**2)
-
-    result = qdframe.solve(Capped())
+    model = Capped()
+    result = qdframe.solve(model)
     assert result.solved, result.message
-    assert abs(result.cost - 38.0) <= min(1e-6 * 38.0, result.cost_estimate)
-    t = result.t
-    exact = np.column_stack([26 / 6 * t**2 - 17 / 6 * t**3, 26 / 3 * t - 8.5 * t**2])
+    assert abs(result.cost - model.exact_cost) <= min(1e-6 * model.exact_cost, result.cost_estimate)
+    exact = model.exact_solution(np.asarray(result.t))
     assert float(np.max(np.abs(result.x - exact))) <= result.error_estimate <= 1e-6 * float(np.max(np.abs(exact)))
 
 

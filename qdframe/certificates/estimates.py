@@ -206,7 +206,7 @@ def misplaced_switches(functional: Functional, result: SolveResult) -> float:
         return 0.0
     xi = functional.pack(result.x, result.z, result.u, result.selections)
     jumps = switch_times(functional, xi, crossings=True, merge=False, bounds=False)
-    kinks = bound_times(functional, xi, states=False)
+    kinks = bound_times(functional, xi)
     if jumps.size + kinks.size == 0:
         return 0.0
     located = np.concatenate([jumps, kinks])

@@ -53,7 +53,7 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
     mesh step apart (the refinement pins a mesh point on each)."""
     grid = functional.grid
     y, lam = functional.arguments(xi), functional.selections(xi)
-    found: list[np.ndarray] = [bound_times(functional, xi, merge, states=False) if bounds else np.zeros(0)]
+    found: list[np.ndarray] = [bound_times(functional, xi, merge) if bounds else np.zeros(0)]
     if not functional.p:
         return found[0]
     s = functional.switch_values(y, gradients=False)[0]
@@ -70,13 +70,16 @@ def switch_times(functional: Functional, xi: np.ndarray, crossings: bool = True,
     return merge_close(times, grid.mesh_times, SAME_TIME * (grid.t[-1] - grid.t[0])) if merge else times
 
 
-def bound_times(functional: Functional, xi: np.ndarray, merge: bool = False, states: bool = True) -> np.ndarray:
-    """Where a bound (``state_bounds``, ``control_bounds``) starts or stops binding, located as a
-    sign term's stop and break-away: its side g = ±(y_j − limit) ≤ 0 is s, "on" where g = 0, and
-    its multiplier over λ, max(0, ℓ + s) (s the augmented Lagrangian's shift,
+def bound_times(functional: Functional, xi: np.ndarray, merge: bool = False) -> np.ndarray:
+    """Where a control bound (``control_bounds``) starts or stops binding, located as a sign
+    term's stop and break-away: its side g = ±(u_j − limit) ≤ 0 is s, "on" where g = 0, and its
+    multiplier over λ, max(0, ℓ + s) (s the augmented Lagrangian's shift,
     :mod:`qdframe.functional.shifts`, 0 without), scaled to λ' = −1 + y/max y, reaches −1 where
     the bound lets go. A control clipped by its bound has a kink there that a mesh point
-    restores the order at, as at a switch."""
+    restores the order at, as at a switch. A state bound (``state_bounds``) is left out: the
+    bounded state is C¹ at its junctions and the least cost fixes them only to second order, so
+    a discrete solution lets go on whichever point is near, and a pin there would hold every
+    finer solution to where a coarse grid let go (docs/method.md)."""
     bounds, shifts, grid = functional.bounds, functional.shifts, functional.grid
     if bounds is None:
         return np.zeros(0)
@@ -85,8 +88,8 @@ def bound_times(functional: Functional, xi: np.ndarray, merge: bool = False, sta
     multipliers = np.maximum(sides + (shifts.bounds if shifts is not None else 0.0), 0.0)
     times = []
     for j in range(sides.shape[1]):
-        if not states and bounds.columns[j] < functional.n:
-            continue
+        if bounds.columns[j] < functional.n:
+            continue  # a state's bound (the docstring)
         multiplier = multipliers[:, j]
         top = float(np.max(multiplier))
         if top <= 0.0:

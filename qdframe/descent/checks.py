@@ -63,12 +63,16 @@ class Check:
         return self.value / self.tol
 
 
+def scaled_tol(residual_tol: float, values: np.ndarray) -> float:
+    """residual_tol·max(1, max|values|): a check's tolerance on the scale of x, z or y."""
+    return residual_tol * max(1.0, float(np.max(np.abs(values), initial=0.0)))
+
+
 def checks(functional: Functional, xi: np.ndarray, residual_tol: float) -> list[Check]:
     """The pointwise checks of the iterate ξ (the table in this module's docstring)."""
     residuals = functional.residuals(xi)
     x, z = functional.split(xi)
-    tol_x = residual_tol * max(1.0, float(np.max(np.abs(x))))
-    tol_z = residual_tol * max(1.0, float(np.max(np.abs(z))))
+    tol_x, tol_z = scaled_tol(residual_tol, x), scaled_tol(residual_tol, z)
     out = [Check("boundary", residuals.boundary_error, tol_x),
            Check("inclusion", residuals.inclusion_residual, tol_z)]
     if residuals.selection_residual is not None:
@@ -79,7 +83,7 @@ def checks(functional: Functional, xi: np.ndarray, residual_tol: float) -> list[
     if functional.bounds is not None:
         y = functional.arguments(xi)[:, functional.bounds.columns]
         violation = float(np.max(np.maximum(functional.values.bound_sides(functional.arguments(xi)), 0.0)))
-        out.append(Check("bounds", violation, residual_tol * max(1.0, float(np.max(np.abs(y))))))
+        out.append(Check("bounds", violation, scaled_tol(residual_tol, y)))
     return out
 
 

@@ -104,8 +104,7 @@ def tolerance_share(functional: Functional, xi: np.ndarray, residual_tol: float)
     check passes, to first order (the least cost's sensitivity to a constraint's right-hand side
     is its multiplier)."""
     x, z = functional.split(xi)
-    tol_x = residual_tol * max(1.0, float(np.max(np.abs(x))))
-    tol_z = residual_tol * max(1.0, float(np.max(np.abs(z), initial=0.0)))
+    tol_x, tol_z = checks.scaled_tol(residual_tol, x), checks.scaled_tol(residual_tol, z)
     y = _weighted_multipliers(functional, functional.constraint_residuals(xi))
     total = tol_x * (float(np.sum(np.abs(y.consistency))) + float(np.sum(np.abs(y.end)))
                      + float(np.sum(np.abs(y.surface))) + float(np.sum(y.bounds)))
@@ -228,7 +227,7 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
         slow = slow + 1 if capped and count and now > FEASIBLE_RATE * last_violation else 0
         halted = count >= MAX_ROUNDS or used >= budget or (stuck and capped)
         if halted or slow >= SLOW_ROUNDS:
-            if close and now <= RESTORE_REACH * _tolerance_x(options, xi, functional.n):
+            if close and now <= RESTORE_REACH * checks.scaled_tol(options.residual_tol, xi[:, : functional.n]):
                 restored = _restored(functional, options, once, xi, result, budget - used)
                 if restored is not None:  # the multipliers' optimum made feasible: its gap and the move count on
                     shift = iterate(functional, restored)[:, : functional.n] - xi[:, : functional.n]
@@ -264,11 +263,6 @@ def rounds(functional: Functional, solver: DirectionSolver, options: DescentOpti
                                    max(move or 0.0, restored_move), share)
     result.multipliers = costates(functional, xi)
     return result
-
-
-def _tolerance_x(options: DescentOptions, xi: np.ndarray, n: int) -> float:
-    """What the pointwise checks let a state's equation miss by: residual_tol·max(1, max|x|)."""
-    return options.residual_tol * max(1.0, float(np.max(np.abs(xi[:, :n]))))
 
 
 def _restored(functional: Functional, options: DescentOptions, once: Callable[..., SolveResult], xi: np.ndarray,

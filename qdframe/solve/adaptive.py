@@ -237,9 +237,9 @@ def refine(grid: Grid, local: np.ndarray, accuracy: float, estimate: float, obse
     as first order asks (sliding-mode-terminal: 151 → 265 points cut the estimate 7.7e-6 → 5.0e-6,
     order 0.77; refining as the order 3 promised took two more meshes). Between orders 1 and p
     nothing changes: issue 55's tie (order 2.0 from 73 to 311 points) was `solved` on the mesh
-    order 3 asks for and `stationary` on the one order 2 asks for.
-    Where the solutions form a set, the solution carried to the new mesh is already a discrete solution there (its re-solve takes an
-    iteration or none), and its choices (z, u) jump at the old points: inside a new interval
+    order 3 asks for and `stationary` on the one order 2 asks for. Where the solutions form a
+    set, the solution carried to the new mesh is already a discrete solution there (its re-solve
+    takes an iteration or none), and its choices (z, u) jump at the old points: inside a new interval
     such a jump leaves the scheme's continued velocity outside the set there and the
     estimate barely falls (coulomb-rest-to-rest, docs/method.md), on an old point it does not.
     """
